@@ -1,0 +1,272 @@
+//! Frames, rotations and WGS-84 geodesy.
+//!
+//! # Conventions
+//! - Navigation frame NED, body frame FRD.
+//! - Quaternion `q = [q0 q1 q2 q3]`, Hamilton, scalar first, rotating body to
+//!   navigation: `v_n = R(q) v_b` with
+//!
+//!   ```text
+//!   R(q) = | 1-2(q2²+q3²)   2(q1q2-q0q3)   2(q1q3+q0q2) |
+//!          | 2(q1q2+q0q3)   1-2(q1²+q3²)   2(q2q3-q0q1) |
+//!          | 2(q1q3-q0q2)   2(q2q3+q0q1)   1-2(q1²+q2²) |
+//!   ```
+//!
+//!   (the paper's eq. (3), which it calls `C_n^b`; its (3,1) entry is printed
+//!   with a `+` sign, the correct entry is `2(q1q3 - q0q2)`).
+//! - Euler angles roll `phi`, pitch `theta`, yaw `psi`, ZYX order:
+//!   `R = Rz(psi) Ry(theta) Rx(phi)`; yaw is clockwise from north seen from above.
+//! - Earth magnetic field in NED, unit length, inclination `I` measured
+//!   downwards from the horizontal and declination `D` east of true north:
+//!   `m_n = [cos I cos D, cos I sin D, sin I]`.
+//!
+//! # Geodesy
+//! WGS-84 geodetic (latitude, longitude, height) goes to ECEF and then to a
+//! local NED frame tangent at an origin. Computed in `f64` in every precision;
+//! only the local NED result, metres from the origin, is narrowed to `T`.
+//! The tangent plane is exact (no flat-earth approximation): the NED axes are
+//! those of the origin, so far from the origin "down" tilts from local vertical
+//! by `distance / 6371 km` radians (0.09 deg at 10 km).
+
+use crate::scalar::Scalar;
+use crate::sensors::Geodetic;
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+// Under no_std, f64 has no inherent math methods: take them from nalgebra's traits (libm).
+#[cfg(not(any(test, feature = "std")))]
+use nalgebra::{ComplexField, RealField};
+
+/// WGS-84 semi-major axis, metres.
+pub const WGS84_A: f64 = 6_378_137.0;
+/// WGS-84 flattening.
+pub const WGS84_F: f64 = 1.0 / 298.257_223_563;
+/// WGS-84 first eccentricity squared.
+pub const WGS84_E2: f64 = WGS84_F * (2.0 - WGS84_F);
+
+/// Body-to-navigation rotation matrix of a (not necessarily unit) quaternion,
+/// eq. (3) with the sign of the (3,1) entry corrected. For a quaternion of norm
+/// `n` the result is `n²` times a rotation.
+pub fn rotation_matrix<T: Scalar>(q: &Quaternion<T>) -> Matrix3<T> {
+    let (q0, q1, q2, q3) = (q.w, q.i, q.j, q.k);
+    let two = T::lit(2.0);
+    let n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3;
+    Matrix3::new(
+        n2 - two * (q2 * q2 + q3 * q3),
+        two * (q1 * q2 - q0 * q3),
+        two * (q1 * q3 + q0 * q2),
+        two * (q1 * q2 + q0 * q3),
+        n2 - two * (q1 * q1 + q3 * q3),
+        two * (q2 * q3 - q0 * q1),
+        two * (q1 * q3 - q0 * q2),
+        two * (q2 * q3 + q0 * q1),
+        n2 - two * (q1 * q1 + q2 * q2),
+    )
+}
+
+/// Quaternion of roll, pitch, yaw (radians, ZYX).
+pub fn quaternion_from_euler<T: Scalar>(roll: T, pitch: T, yaw: T) -> UnitQuaternion<T> {
+    let half = T::lit(0.5);
+    let (sr, cr) = (roll * half).sin_cos();
+    let (sp, cp) = (pitch * half).sin_cos();
+    let (sy, cy) = (yaw * half).sin_cos();
+    UnitQuaternion::new_unchecked(Quaternion::new(
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    ))
+}
+
+/// Roll, pitch, yaw (radians, ZYX) of a quaternion; yaw in `(-pi, pi]`.
+/// Pitch is clamped to `[-pi/2, pi/2]` at the singularity.
+pub fn euler_from_quaternion<T: Scalar>(q: &Quaternion<T>) -> Vector3<T> {
+    let (q0, q1, q2, q3) = (q.w, q.i, q.j, q.k);
+    let one = T::one();
+    let two = T::lit(2.0);
+    let roll = (two * (q0 * q1 + q2 * q3)).atan2(one - two * (q1 * q1 + q2 * q2));
+    let s = (two * (q0 * q2 - q3 * q1)).clamp(-one, one);
+    let pitch = s.asin();
+    let yaw = (two * (q0 * q3 + q1 * q2)).atan2(one - two * (q2 * q2 + q3 * q3));
+    Vector3::new(roll, pitch, yaw)
+}
+
+/// The exact rotation of a rotation vector `theta` (axis times angle, radians)
+/// as a unit quaternion: `[cos(|theta|/2), sin(|theta|/2) theta/|theta|]`.
+/// Uses the Taylor series below 1e-4 rad so it is smooth at zero.
+pub fn quaternion_from_rotation_vector<T: Scalar>(theta: &Vector3<T>) -> UnitQuaternion<T> {
+    let angle2 = theta.norm_squared();
+    let half = T::lit(0.5);
+    let (w, k) = if angle2 < T::lit(1e-8) {
+        // cos(a/2) ~ 1 - a²/8, sin(a/2)/a ~ 1/2 - a²/48
+        (T::one() - angle2 / T::lit(8.0), half - angle2 / T::lit(48.0))
+    } else {
+        let angle = angle2.sqrt();
+        let (s, c) = (angle * half).sin_cos();
+        (c, s / angle)
+    };
+    UnitQuaternion::new_normalize(Quaternion::new(w, theta.x * k, theta.y * k, theta.z * k))
+}
+
+/// Wraps an angle to `(-pi, pi]`.
+pub fn wrap_pi<T: Scalar>(a: T) -> T {
+    let two_pi = T::two_pi();
+    let mut w = a - two_pi * ((a + T::pi()) / two_pi).floor();
+    if w <= -T::pi() {
+        w += two_pi;
+    }
+    w
+}
+
+/// Unit Earth magnetic field in NED from inclination (down from horizontal)
+/// and declination (east of north), radians.
+pub fn magnetic_field_ned<T: Scalar>(inclination: T, declination: T) -> Vector3<T> {
+    let (si, ci) = inclination.sin_cos();
+    let (sd, cd) = declination.sin_cos();
+    Vector3::new(ci * cd, ci * sd, si)
+}
+
+/// Tilt-compensated true heading (radians, `(-pi, pi]`) from a body-frame
+/// magnetometer sample, roll and pitch (radians), and the declination.
+///
+/// The field is de-rotated by roll and pitch into the level heading frame,
+/// `m_h = Ry(theta) Rx(phi) m_b`; magnetic heading is `atan2(-m_h.y, m_h.x)`,
+/// and true heading adds the declination.
+pub fn tilt_compensated_heading<T: Scalar>(
+    field_body: &Vector3<T>,
+    roll: T,
+    pitch: T,
+    declination: T,
+) -> T {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let m = field_body;
+    // Rx(phi) m
+    let y1 = cr * m.y - sr * m.z;
+    let z1 = sr * m.y + cr * m.z;
+    // Ry(theta) (Rx m)
+    let xh = cp * m.x + sp * z1;
+    let yh = y1;
+    wrap_pi((-yh).atan2(xh) + declination)
+}
+
+/// Roll and pitch (radians) of a level-frame specific force: the attitude at
+/// which gravity alone would give this accelerometer reading. Meaningful
+/// when the vehicle is not accelerating.
+pub fn roll_pitch_from_accel<T: Scalar>(accel_body: &Vector3<T>) -> (T, T) {
+    // At rest f_b = R^T [0 0 -g]: f = g [sin(th), -sin(ph)cos(th), -cos(ph)cos(th)].
+    let f = accel_body;
+    let roll = (-f.y).atan2(-f.z);
+    let pitch = f.x.atan2((f.y * f.y + f.z * f.z).sqrt());
+    (roll, pitch)
+}
+
+/// Earth-centred, Earth-fixed coordinates (metres) of a geodetic position.
+pub fn geodetic_to_ecef(p: &Geodetic) -> Vector3<f64> {
+    let lat = p.lat_deg.to_radians_s();
+    let lon = p.lon_deg.to_radians_s();
+    let (sl, cl) = lat.sin_cos();
+    let (so, co) = lon.sin_cos();
+    let n = WGS84_A / (1.0 - WGS84_E2 * sl * sl).sqrt();
+    Vector3::new(
+        (n + p.alt_m) * cl * co,
+        (n + p.alt_m) * cl * so,
+        (n * (1.0 - WGS84_E2) + p.alt_m) * sl,
+    )
+}
+
+/// Geodetic position of ECEF coordinates (metres). Iterates the latitude
+/// to below 1e-12 rad (sub-millimetre); not meant for points near the
+/// Earth's centre. Height uses `h = p cos(lat) + z sin(lat) - a sqrt(1 - e² sin²(lat))`,
+/// well conditioned at the poles.
+pub fn ecef_to_geodetic(e: &Vector3<f64>) -> Geodetic {
+    let lon = e.y.atan2(e.x);
+    let p = (e.x * e.x + e.y * e.y).sqrt();
+    let mut lat = e.z.atan2(p * (1.0 - WGS84_E2));
+    let mut h = 0.0;
+    for _ in 0..10 {
+        let (s, c) = lat.sin_cos();
+        let n = WGS84_A / (1.0 - WGS84_E2 * s * s).sqrt();
+        // Stable at every latitude, unlike p / cos(lat) - n.
+        h = p * c + e.z * s - WGS84_A * (1.0 - WGS84_E2 * s * s).sqrt();
+        let next = e.z.atan2(p * (1.0 - WGS84_E2 * n / (n + h)));
+        let done = (next - lat).abs() < 1e-12;
+        lat = next;
+        if done {
+            break;
+        }
+    }
+    Geodetic {
+        lat_deg: lat.to_degrees_s(),
+        lon_deg: lon.to_degrees_s(),
+        alt_m: h,
+    }
+}
+
+/// A local NED frame tangent to the WGS-84 ellipsoid at an origin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct LocalFrame {
+    origin: Geodetic,
+    origin_ecef: Vector3<f64>,
+    /// Rows: north, east, down unit vectors in ECEF.
+    ecef_to_ned: Matrix3<f64>,
+}
+
+impl LocalFrame {
+    /// A frame about `origin`.
+    pub fn new(origin: Geodetic) -> Self {
+        let lat = origin.lat_deg.to_radians_s();
+        let lon = origin.lon_deg.to_radians_s();
+        let (sl, cl) = lat.sin_cos();
+        let (so, co) = lon.sin_cos();
+        let ecef_to_ned = Matrix3::new(
+            -sl * co,
+            -sl * so,
+            cl,
+            -so,
+            co,
+            0.0,
+            -cl * co,
+            -cl * so,
+            -sl,
+        );
+        Self {
+            origin,
+            origin_ecef: geodetic_to_ecef(&origin),
+            ecef_to_ned,
+        }
+    }
+
+    /// The origin.
+    pub fn origin(&self) -> Geodetic {
+        self.origin
+    }
+
+    /// NED coordinates (metres, `f64`) of a geodetic position.
+    pub fn to_ned(&self, p: &Geodetic) -> Vector3<f64> {
+        self.ecef_to_ned * (geodetic_to_ecef(p) - self.origin_ecef)
+    }
+
+    /// NED coordinates (metres) of a geodetic position, in `T`.
+    pub fn to_ned_t<T: Scalar>(&self, p: &Geodetic) -> Vector3<T> {
+        self.to_ned(p).map(T::lit)
+    }
+
+    /// Geodetic position of NED coordinates (metres) in this frame.
+    pub fn to_geodetic(&self, ned: &Vector3<f64>) -> Geodetic {
+        ecef_to_geodetic(&(self.origin_ecef + self.ecef_to_ned.transpose() * ned))
+    }
+}
+
+/// Degree/radian conversions through `Scalar` so they work under `no_std`.
+trait Angles {
+    fn to_radians_s(self) -> Self;
+    fn to_degrees_s(self) -> Self;
+}
+
+impl Angles for f64 {
+    fn to_radians_s(self) -> Self {
+        self * (core::f64::consts::PI / 180.0)
+    }
+    fn to_degrees_s(self) -> Self {
+        self * (180.0 / core::f64::consts::PI)
+    }
+}

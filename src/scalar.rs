@@ -1,0 +1,75 @@
+//! The one float bound of the crate.
+//!
+//! Every estimator is generic over `T: Scalar`, implemented for `f32` (the
+//! microcontroller build) and `f64` (log replay on a laptop). `Scalar` is
+//! `nalgebra::RealField` plus two conversions; all math goes through
+//! `RealField`/`ComplexField` methods (`x.sin()`, `x.sqrt()`), which `libm`
+//! provides under `no_std`.
+//!
+//! Literals are written `T::lit(0.5)`, never `as` casts.
+
+use nalgebra::RealField;
+
+/// The float bound used by every type of the crate: `f32` or `f64`.
+pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
+    /// A constant from an `f64` literal (rounded to nearest for `f32`).
+    fn lit(x: f64) -> Self;
+    /// The value as `f64` (exact for both precisions).
+    fn as_f64(self) -> f64;
+    /// Machine epsilon of the precision.
+    const EPS: Self;
+}
+
+impl Scalar for f32 {
+    #[inline]
+    fn lit(x: f64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn as_f64(self) -> f64 {
+        self as f64
+    }
+    const EPS: Self = f32::EPSILON;
+}
+
+impl Scalar for f64 {
+    #[inline]
+    fn lit(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn as_f64(self) -> f64 {
+        self
+    }
+    const EPS: Self = f64::EPSILON;
+}
+
+/// Microseconds to seconds, in `T`. Timestamps stay integer microseconds
+/// (`u64`) everywhere; only *differences* of timestamps become floats.
+#[inline]
+pub fn us_to_s<T: Scalar>(us: u64) -> T {
+    T::lit(us as f64 * 1e-6)
+}
+
+/// Seconds to integer microseconds, rounded to nearest; negative and
+/// non-finite inputs give `None`.
+#[inline]
+pub fn s_to_us<T: Scalar>(s: T) -> Option<u64> {
+    let us = s.as_f64() * 1e6;
+    if us.is_finite() && us >= 0.0 && us < u64::MAX as f64 {
+        Some((us + 0.5) as u64)
+    } else {
+        None
+    }
+}
+
+/// True when every component of a vector or matrix is finite.
+#[inline]
+pub fn all_finite<T: Scalar, R: nalgebra::Dim, C: nalgebra::Dim, S>(
+    m: &nalgebra::Matrix<T, R, C, S>,
+) -> bool
+where
+    S: nalgebra::RawStorage<T, R, C>,
+{
+    m.iter().all(|v| v.is_finite())
+}

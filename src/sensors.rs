@@ -1,0 +1,274 @@
+//! Sensor input: the traits the estimators read, and plain structs implementing them.
+//!
+//! Frames and units:
+//! - body frame FRD (x forward, y right, z down);
+//! - navigation frame NED (north, east, down) about a local origin;
+//! - timestamps are integer microseconds on **one clock shared by all
+//!   sensors** (the IMU's). A GPS timestamp is the time the fix was received
+//!   on that clock, not the receiver's own time of validity: the difference is
+//!   exactly the delay this crate estimates.
+//!
+//! A user's driver types can implement the traits directly; the structs
+//! [`Imu`], [`Gps`] and [`Mag`] are there for everyone else.
+
+use crate::error::Error;
+use crate::scalar::{Scalar, all_finite};
+use nalgebra::Vector3;
+
+/// One IMU sample: angular rate and specific force in body FRD.
+pub trait ImuSample<T: Scalar> {
+    /// Sample time, microseconds.
+    fn time_us(&self) -> u64;
+    /// Angular rate of body relative to inertial space, body FRD, rad/s.
+    fn gyro_rad_s(&self) -> Vector3<T>;
+    /// Specific force (accelerometer), body FRD, m/s^2. Level and at rest it
+    /// reads about `[0, 0, -9.81]`.
+    fn accel_m_s2(&self) -> Vector3<T>;
+}
+
+/// One magnetometer sample in body FRD. Only the direction is used, so the
+/// unit is free (gauss, microtesla, normalized).
+pub trait MagSample<T: Scalar> {
+    /// Sample time, microseconds.
+    fn time_us(&self) -> u64;
+    /// Magnetic field in body FRD, any unit.
+    fn field_body(&self) -> Vector3<T>;
+}
+
+/// WGS-84 geodetic position. Kept in `f64` in every precision: an `f32`
+/// latitude in radians resolves only about 0.4 m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Geodetic {
+    /// Latitude, degrees, north positive.
+    pub lat_deg: f64,
+    /// Longitude, degrees, east positive.
+    pub lon_deg: f64,
+    /// Height, metres, positive up. Ellipsoidal or MSL: only differences from
+    /// the local origin are used, so be consistent.
+    pub alt_m: f64,
+}
+
+impl Geodetic {
+    /// True when the three fields are finite and latitude/longitude are in range.
+    pub fn is_valid(&self) -> bool {
+        self.lat_deg.is_finite()
+            && self.lon_deg.is_finite()
+            && self.alt_m.is_finite()
+            && self.lat_deg.abs() <= 90.0
+            && self.lon_deg.abs() <= 360.0
+    }
+}
+
+/// Where a GPS fix says the antenna was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GpsPosition<T: Scalar> {
+    /// WGS-84 latitude, longitude, height; converted to local NED about the
+    /// estimator's origin (the first fix unless configured).
+    Geodetic(Geodetic),
+    /// Already local NED, metres.
+    Ned(Vector3<T>),
+}
+
+/// One GPS fix.
+pub trait GpsFix<T: Scalar> {
+    /// Time the fix was received, on the IMU's clock, microseconds.
+    fn time_us(&self) -> u64;
+    /// Antenna position.
+    fn position(&self) -> GpsPosition<T>;
+    /// Velocity, NED, m/s (down positive).
+    fn velocity_ned_m_s(&self) -> Vector3<T>;
+    /// Receiver's horizontal position accuracy (1 sigma), metres, if reported.
+    /// When present it replaces the configured horizontal position noise.
+    fn horizontal_accuracy_m(&self) -> Option<T> {
+        None
+    }
+    /// Receiver's vertical position accuracy (1 sigma), metres, if reported.
+    fn vertical_accuracy_m(&self) -> Option<T> {
+        None
+    }
+    /// Receiver's speed accuracy (1 sigma per axis), m/s, if reported.
+    fn speed_accuracy_m_s(&self) -> Option<T> {
+        None
+    }
+}
+
+/// A plain IMU sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Imu<T: Scalar> {
+    /// Sample time, microseconds.
+    pub t_us: u64,
+    /// Angular rate, body FRD, rad/s.
+    pub gyro_rad_s: Vector3<T>,
+    /// Specific force, body FRD, m/s^2.
+    pub accel_m_s2: Vector3<T>,
+}
+
+impl<T: Scalar> ImuSample<T> for Imu<T> {
+    fn time_us(&self) -> u64 {
+        self.t_us
+    }
+    fn gyro_rad_s(&self) -> Vector3<T> {
+        self.gyro_rad_s
+    }
+    fn accel_m_s2(&self) -> Vector3<T> {
+        self.accel_m_s2
+    }
+}
+
+/// A plain magnetometer sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Mag<T: Scalar> {
+    /// Sample time, microseconds.
+    pub t_us: u64,
+    /// Field, body FRD, any unit.
+    pub field_body: Vector3<T>,
+}
+
+impl<T: Scalar> MagSample<T> for Mag<T> {
+    fn time_us(&self) -> u64 {
+        self.t_us
+    }
+    fn field_body(&self) -> Vector3<T> {
+        self.field_body
+    }
+}
+
+/// A plain GPS fix.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Gps<T: Scalar> {
+    /// Receive time on the IMU clock, microseconds.
+    pub t_us: u64,
+    /// Antenna position.
+    pub position: GpsPosition<T>,
+    /// Velocity NED, m/s.
+    pub velocity_ned_m_s: Vector3<T>,
+    /// Horizontal accuracy (1 sigma), metres.
+    pub horizontal_accuracy_m: Option<T>,
+    /// Vertical accuracy (1 sigma), metres.
+    pub vertical_accuracy_m: Option<T>,
+    /// Speed accuracy (1 sigma), m/s.
+    pub speed_accuracy_m_s: Option<T>,
+}
+
+impl<T: Scalar> GpsFix<T> for Gps<T> {
+    fn time_us(&self) -> u64 {
+        self.t_us
+    }
+    fn position(&self) -> GpsPosition<T> {
+        self.position
+    }
+    fn velocity_ned_m_s(&self) -> Vector3<T> {
+        self.velocity_ned_m_s
+    }
+    fn horizontal_accuracy_m(&self) -> Option<T> {
+        self.horizontal_accuracy_m
+    }
+    fn vertical_accuracy_m(&self) -> Option<T> {
+        self.vertical_accuracy_m
+    }
+    fn speed_accuracy_m_s(&self) -> Option<T> {
+        self.speed_accuracy_m_s
+    }
+}
+
+/// Copy any [`ImuSample`] into an [`Imu`], refusing non-finite values.
+pub fn checked_imu<T: Scalar, I: ImuSample<T> + ?Sized>(imu: &I) -> Result<Imu<T>, Error> {
+    let s = Imu {
+        t_us: imu.time_us(),
+        gyro_rad_s: imu.gyro_rad_s(),
+        accel_m_s2: imu.accel_m_s2(),
+    };
+    if !all_finite(&s.gyro_rad_s) {
+        return Err(Error::NonFinite { field: "imu.gyro" });
+    }
+    if !all_finite(&s.accel_m_s2) {
+        return Err(Error::NonFinite { field: "imu.accel" });
+    }
+    Ok(s)
+}
+
+/// Copy any [`MagSample`] into a [`Mag`], refusing non-finite or zero fields.
+pub fn checked_mag<T: Scalar, M: MagSample<T> + ?Sized>(mag: &M) -> Result<Mag<T>, Error> {
+    let s = Mag {
+        t_us: mag.time_us(),
+        field_body: mag.field_body(),
+    };
+    if !all_finite(&s.field_body) {
+        return Err(Error::NonFinite { field: "mag.field" });
+    }
+    if s.field_body.norm_squared() <= T::zero() {
+        return Err(Error::OutOfRange {
+            field: "mag.field",
+            reason: "zero field has no direction",
+        });
+    }
+    Ok(s)
+}
+
+/// Copy any [`GpsFix`] into a [`Gps`], refusing non-finite values and
+/// non-positive accuracies.
+pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, Error> {
+    let s = Gps {
+        t_us: gps.time_us(),
+        position: gps.position(),
+        velocity_ned_m_s: gps.velocity_ned_m_s(),
+        horizontal_accuracy_m: gps.horizontal_accuracy_m(),
+        vertical_accuracy_m: gps.vertical_accuracy_m(),
+        speed_accuracy_m_s: gps.speed_accuracy_m_s(),
+    };
+    match s.position {
+        GpsPosition::Geodetic(g) if !g.is_valid() => {
+            return Err(Error::NonFinite {
+                field: "gps.position",
+            });
+        }
+        GpsPosition::Ned(p) if !all_finite(&p) => {
+            return Err(Error::NonFinite {
+                field: "gps.position",
+            });
+        }
+        _ => {}
+    }
+    if !all_finite(&s.velocity_ned_m_s) {
+        return Err(Error::NonFinite {
+            field: "gps.velocity",
+        });
+    }
+    for (acc, field) in [
+        (s.horizontal_accuracy_m, "gps.horizontal_accuracy"),
+        (s.vertical_accuracy_m, "gps.vertical_accuracy"),
+        (s.speed_accuracy_m_s, "gps.speed_accuracy"),
+    ] {
+        if let Some(a) = acc {
+            if !a.is_finite() {
+                return Err(Error::NonFinite { field });
+            }
+            if a <= T::zero() {
+                return Err(Error::OutOfRange {
+                    field,
+                    reason: "accuracy must be positive",
+                });
+            }
+        }
+    }
+    Ok(s)
+}
+
+/// Checks a new timestamp of one stream against the previous accepted one.
+#[allow(dead_code)] // used by the estimators
+pub(crate) fn check_time(stream: &'static str, previous_us: Option<u64>, got_us: u64) -> Result<(), Error> {
+    match previous_us {
+        Some(p) if got_us < p => Err(Error::TimeWentBackwards {
+            stream,
+            previous_us: p,
+            got_us,
+        }),
+        Some(p) if got_us == p => Err(Error::DuplicateTimestamp { stream, t_us: got_us }),
+        _ => Ok(()),
+    }
+}
