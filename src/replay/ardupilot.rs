@@ -1,0 +1,373 @@
+//! Reader of an ArduPilot DataFlash log exported to one CSV per message
+//! (the layout of `../shared/data/ardupilot-log171`).
+//!
+//! | file | columns read | conversion |
+//! |---|---|---|
+//! | `imu.csv` (or `imu2.csv`) | `t_s, gyro_[xyz]_rad_s, acc_[xyz]_m_s2` | `t_us = round(t_s 1e6)`; body FRD, rad/s, m/s² kept |
+//! | `gps.csv` | `t_s, fix_status, lat_deg, lon_deg, alt_msl_m, vel_n_m_s, vel_e_m_s, vel_d_m_s` | `fix_status < 3` counted as no-fix; without the `vel_n/vel_e` columns, `v_n = speed cos(course)`, `v_e = speed sin(course)` from `speed_m_s, course_deg` |
+//! | `gps_accuracy.csv` | `t_s, hAcc_m, vAcc_m, sAcc_m_s` | joined to the fix with the nearest `t_s` within 50 ms |
+//! | `mag.csv` | `t_s, mag_[xyz]_mGauss, health` | mGauss to gauss (÷1000); `health == 0` counted as invalid |
+//! | `ekf1_reference.csv` | `t_s, roll_deg, pitch_deg, yaw_deg, vel_*, pos_*` | degrees to the body-to-NED quaternion (ZYX) |
+//! | `att.csv` | `t_s, roll_deg, pitch_deg, yaw_deg` | the same |
+//! | `params.csv` | `name, value` | `AHRS_TRIM_X/Y` for [`ReferenceAlignment`] |
+//!
+//! The GPS time is the receive time on the autopilot's clock, which is the
+//! clock of the IMU: exactly what the delay estimators need.
+//!
+//! # Comparing with the onboard attitude
+//! The onboard attitude is that of the vehicle frame, the IMU frame with the
+//! trim `AHRS_TRIM_X` (roll), `AHRS_TRIM_Y` (pitch) taken off, and its yaw is
+//! true heading (the autopilot applied the declination it looked up). Read
+//! the trim with [`alignment_from_params`]; log171's values are
+//! [`LOG171_ALIGNMENT`].
+
+use super::table::{CsvTable, RowParser, RowStream, number, seconds_as_us, vector3};
+use super::{
+    ArduPilotImu, ArduPilotReference, GpsRow, GpsRowPosition, LogFiles, LogFormat, ReaderOptions,
+    ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind, StreamKind,
+    imu_event, mag_event, named, require,
+};
+use crate::geo::quaternion_from_euler;
+use crate::scalar::Scalar;
+use crate::sensors::Geodetic;
+use csv::StringRecord;
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The time column of every file of the layout, seconds.
+pub const TIME_COLUMN: &str = "t_s";
+
+/// Lowest `fix_status` accepted: 3 is a 3-D fix.
+pub const MIN_FIX_STATUS: f64 = 3.0;
+
+/// Largest time difference, microseconds, between a fix and the
+/// `gps_accuracy.csv` row joined to it.
+pub const ACCURACY_JOIN_WINDOW_US: u64 = 50_000;
+
+/// Milligauss per gauss: `mag.csv` is in mGauss, the reader returns gauss.
+pub const MILLIGAUSS_PER_GAUSS: f64 = 1000.0;
+
+/// log171's alignment: `AHRS_TRIM_X = 0.0205 rad`, `AHRS_TRIM_Y = 0.0053 rad`
+/// (from its `params.csv`), declination +11.8 deg (measured on the log: the
+/// median gap between tilt-compensated magnetic heading and onboard yaw;
+/// `COMPASS_AUTODEC = 1` looked up about +12 deg at Canberra).
+pub const LOG171_ALIGNMENT: ReferenceAlignment = ReferenceAlignment {
+    trim_roll_rad: 0.020_519_794_896_245_003,
+    trim_pitch_rad: 0.005_281_575_489_789_247_5,
+    declination_rad: 11.8 * core::f64::consts::PI / 180.0,
+};
+
+pub(crate) fn locate(files: &[PathBuf], searched: &str, options: &ReaderOptions) -> Result<LogFiles, ReplayError> {
+    let imu_name = match options.ardupilot_imu {
+        ArduPilotImu::First => "imu.csv",
+        ArduPilotImu::Second => "imu2.csv",
+    };
+    let reference = match options.ardupilot_reference {
+        ArduPilotReference::Ekf1 => named(files, "ekf1_reference.csv").or_else(|| named(files, "att.csv")),
+        ArduPilotReference::Att => named(files, "att.csv"),
+    };
+    Ok(LogFiles {
+        format: LogFormat::ArduPilot,
+        imu: require(files, imu_name, LogFormat::ArduPilot, searched)?,
+        gps: require(files, "gps.csv", LogFormat::ArduPilot, searched)?,
+        mag: named(files, "mag.csv").cloned(),
+        gps_accuracy: named(files, "gps_accuracy.csv").cloned(),
+        reference: reference.cloned(),
+        params: named(files, "params.csv").cloned(),
+    })
+}
+
+type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
+
+pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
+    let mut streams = vec![
+        (StreamKind::Imu, imu_stream(&files.imu)?),
+        (StreamKind::Gps, gps_stream(&files.gps, files.gps_accuracy.as_deref())?),
+    ];
+    if let Some(mag) = &files.mag {
+        streams.push((StreamKind::Mag, mag_stream(mag)?));
+    }
+    Ok(streams)
+}
+
+struct ImuColumns {
+    t: usize,
+    gyro: [usize; 3],
+    accel: [usize; 3],
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        imu_event(seconds_as_us(rec, self.t)?, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
+    }
+}
+
+fn imu_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = ImuColumns {
+        t: table.column(TIME_COLUMN)?,
+        gyro: table.columns3(["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"])?,
+        accel: table.columns3(["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"])?,
+    };
+    Ok(RowStream::new(table, Box::new(parser), "imu"))
+}
+
+/// Where the NED velocity comes from.
+enum VelocityColumns {
+    /// `vel_n_m_s, vel_e_m_s, vel_d_m_s`.
+    Ned([usize; 3]),
+    /// Ground speed (m/s), course over ground (deg, clockwise from true
+    /// north) and vertical velocity (down positive).
+    SpeedCourse { speed: usize, course: usize, down: usize },
+}
+
+impl VelocityColumns {
+    fn read(&self, rec: &StringRecord) -> Result<Vector3<f64>, SkipKind> {
+        match *self {
+            Self::Ned(idx) => vector3(rec, idx),
+            Self::SpeedCourse { speed, course, down } => {
+                let (s, c) = (number(rec, speed)?, number(rec, course)?.to_radians());
+                Ok(Vector3::new(s * c.cos(), s * c.sin(), number(rec, down)?))
+            }
+        }
+    }
+}
+
+/// One row of `gps_accuracy.csv`.
+#[derive(Clone, Copy)]
+struct Accuracy {
+    t_us: u64,
+    horizontal_m: f64,
+    vertical_m: f64,
+    speed_m_s: f64,
+}
+
+/// The streaming join of `gps_accuracy.csv` to the fixes: the accuracy rows
+/// just before and just after the fix time are held, the nearest one within
+/// [`ACCURACY_JOIN_WINDOW_US`] is used.
+struct AccuracyJoin {
+    stream: RowStream<AccuracyRow>,
+    before: Option<Accuracy>,
+    after: Option<Accuracy>,
+    exhausted: bool,
+}
+
+/// Wrapper so an accuracy row can go through [`RowStream`].
+struct AccuracyRow(Accuracy);
+
+impl super::Timed for AccuracyRow {
+    fn time_us(&self) -> u64 {
+        self.0.t_us
+    }
+}
+
+struct AccuracyColumns {
+    t: usize,
+    values: [usize; 3],
+}
+
+impl RowParser<AccuracyRow> for AccuracyColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<AccuracyRow, SkipKind> {
+        let v = vector3(rec, self.values)?;
+        if v.iter().any(|&a| a <= 0.0) {
+            return Err(SkipKind::OutOfRange);
+        }
+        Ok(AccuracyRow(Accuracy {
+            t_us: seconds_as_us(rec, self.t)?,
+            horizontal_m: v.x,
+            vertical_m: v.y,
+            speed_m_s: v.z,
+        }))
+    }
+}
+
+impl AccuracyJoin {
+    fn open(path: &Path) -> Result<Self, ReplayError> {
+        let table = CsvTable::open(path)?;
+        let parser = AccuracyColumns {
+            t: table.column(TIME_COLUMN)?,
+            values: table.columns3(["hAcc_m", "vAcc_m", "sAcc_m_s"])?,
+        };
+        Ok(Self {
+            stream: RowStream::new(table, Box::new(parser), "gps_accuracy"),
+            before: None,
+            after: None,
+            exhausted: false,
+        })
+    }
+
+    /// The accuracy row nearest to `t_us` within the window. Fix times
+    /// increase, so rows behind the current fix are dropped as it goes.
+    fn at(&mut self, t_us: u64, skips: &mut SkipCounts) -> Option<Accuracy> {
+        loop {
+            match self.after {
+                Some(a) if a.t_us <= t_us => self.before = self.after.take(),
+                Some(_) => break,
+                None if self.exhausted => break,
+                None => match self.stream.next_value(skips) {
+                    Some(AccuracyRow(a)) => self.after = Some(a),
+                    None => self.exhausted = true,
+                },
+            }
+        }
+        [self.before, self.after]
+            .into_iter()
+            .flatten()
+            .map(|a| (a.t_us.abs_diff(t_us), a))
+            .filter(|&(gap, _)| gap <= ACCURACY_JOIN_WINDOW_US)
+            .min_by_key(|&(gap, _)| gap)
+            .map(|(_, a)| a)
+    }
+}
+
+struct GpsColumns {
+    t: usize,
+    fix: usize,
+    position: [usize; 3],
+    velocity: VelocityColumns,
+    accuracy: Option<AccuracyJoin>,
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
+    fn parse(&mut self, rec: &StringRecord, skips: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        let t_us = seconds_as_us(rec, self.t)?;
+        if number(rec, self.fix)? < MIN_FIX_STATUS {
+            return Err(SkipKind::NoFix);
+        }
+        let [lat, lon, alt] = self.position;
+        let position = GpsRowPosition::Geodetic(Geodetic {
+            lat_deg: number(rec, lat)?,
+            lon_deg: number(rec, lon)?,
+            alt_m: number(rec, alt)?,
+        });
+        let velocity_ned_m_s = self.velocity.read(rec)?;
+        let accuracy = self.accuracy.as_mut().and_then(|join| join.at(t_us, skips));
+        GpsRow {
+            t_us,
+            position,
+            velocity_ned_m_s,
+            horizontal_accuracy_m: accuracy.map(|a| a.horizontal_m),
+            vertical_accuracy_m: accuracy.map(|a| a.vertical_m),
+            speed_accuracy_m_s: accuracy.map(|a| a.speed_m_s),
+        }
+        .into_event()
+    }
+}
+
+fn gps_stream<T: Scalar>(path: &Path, accuracy: Option<&Path>) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let velocity = match table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"]) {
+        Ok(idx) => VelocityColumns::Ned(idx),
+        Err(_) => VelocityColumns::SpeedCourse {
+            speed: table.column("speed_m_s")?,
+            course: table.column("course_deg")?,
+            down: table.column("vel_d_m_s")?,
+        },
+    };
+    let parser = GpsColumns {
+        t: table.column(TIME_COLUMN)?,
+        fix: table.column("fix_status")?,
+        position: table.columns3(["lat_deg", "lon_deg", "alt_msl_m"])?,
+        velocity,
+        accuracy: accuracy.map(AccuracyJoin::open).transpose()?,
+    };
+    Ok(RowStream::new(table, Box::new(parser), "gps"))
+}
+
+struct MagColumns {
+    t: usize,
+    field: [usize; 3],
+    health: Option<usize>,
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        let t_us = seconds_as_us(rec, self.t)?;
+        if let Some(h) = self.health
+            && number(rec, h)? == 0.0
+        {
+            return Err(SkipKind::Invalid);
+        }
+        mag_event(t_us, vector3(rec, self.field)? / MILLIGAUSS_PER_GAUSS)
+    }
+}
+
+fn mag_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = MagColumns {
+        t: table.column(TIME_COLUMN)?,
+        field: table.columns3(["mag_x_mGauss", "mag_y_mGauss", "mag_z_mGauss"])?,
+        health: table.find("health"),
+    };
+    Ok(RowStream::new(table, Box::new(parser), "mag"))
+}
+
+struct ReferenceColumns {
+    t: usize,
+    euler_deg: [usize; 3],
+    velocity: Option<[usize; 3]>,
+    position: Option<[usize; 3]>,
+}
+
+impl RowParser<ReferenceSample> for ReferenceColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<ReferenceSample, SkipKind> {
+        let e = vector3(rec, self.euler_deg)?.map(f64::to_radians);
+        Ok(ReferenceSample {
+            t_us: seconds_as_us(rec, self.t)?,
+            attitude: quaternion_from_euler(e.x, e.y, e.z),
+            velocity_ned_m_s: self.velocity.map(|idx| vector3(rec, idx)).transpose()?,
+            position_ned_m: self.position.map(|idx| vector3(rec, idx)).transpose()?,
+        })
+    }
+}
+
+/// `ekf1_reference.csv` or `att.csv` as a reference stream (velocity and
+/// position when the file has them).
+pub(crate) fn reference_stream(path: &Path) -> Result<RowStream<ReferenceSample>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = ReferenceColumns {
+        t: table.column(TIME_COLUMN)?,
+        euler_deg: table.columns3(["roll_deg", "pitch_deg", "yaw_deg"])?,
+        velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"]).ok(),
+        position: table.columns3(["pos_n_m", "pos_e_m", "pos_d_m"]).ok(),
+    };
+    Ok(RowStream::new(table, Box::new(parser), "reference"))
+}
+
+/// Reads `params.csv` (`name,value`) into a map. Rows whose value is not a
+/// number are left out of the map and counted in `skips`.
+pub fn read_params(path: &Path, skips: &mut SkipCounts) -> Result<BTreeMap<String, f64>, ReplayError> {
+    let mut table = CsvTable::open(path)?;
+    let (name, value) = (table.column("name")?, table.column("value")?);
+    let label = table.label().to_string();
+    let mut params = BTreeMap::new();
+    while let Some(rec) = table.next_record(skips) {
+        match (rec.get(name), number(rec, value)) {
+            (Some(n), Ok(v)) if !n.is_empty() => {
+                params.insert(n.to_string(), v);
+                skips.accept(&label);
+            }
+            (_, Err(kind)) => skips.skip(&label, kind),
+            _ => skips.skip(&label, SkipKind::Unparsable),
+        }
+    }
+    Ok(params)
+}
+
+/// The alignment of an ArduPilot log's reference: trim from `AHRS_TRIM_X`
+/// and `AHRS_TRIM_Y` when the parameters have them (else zero), and the
+/// given declination (ArduPilot does not log the value `COMPASS_AUTODEC`
+/// looked up; `COMPASS_DEC` holds it only when set by hand, so it is used
+/// when `COMPASS_AUTODEC` is 0).
+pub fn alignment_from_params(params: &BTreeMap<String, f64>, declination_rad: f64) -> ReferenceAlignment {
+    let manual_declination = params.get("COMPASS_AUTODEC") == Some(&0.0);
+    ReferenceAlignment {
+        trim_roll_rad: params.get("AHRS_TRIM_X").copied().unwrap_or(0.0),
+        trim_pitch_rad: params.get("AHRS_TRIM_Y").copied().unwrap_or(0.0),
+        declination_rad: match params.get("COMPASS_DEC") {
+            Some(&d) if manual_declination => d,
+            _ => declination_rad,
+        },
+    }
+}

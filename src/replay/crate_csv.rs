@@ -1,0 +1,185 @@
+//! Reader of the crate's own CSV format (`docs/csv-format.md`), the format
+//! the simulator writes.
+//!
+//! No unit conversion: times are integer microseconds (`t_us`), angular rate
+//! rad/s, specific force m/s² (body FRD), GPS position geodetic
+//! (`lat_deg, lon_deg, alt_m`) or local NED (`pos_[ned]_m`; geodetic wins
+//! when both are present), velocity NED m/s (down positive), optional
+//! accuracies (`h_acc_m, v_acc_m, s_acc_m_s`; empty cell = not reported),
+//! magnetometer in any unit. The format has no fix flag, so no row is
+//! counted as [`NoFix`](super::SkipKind::NoFix). `truth.csv` is read as the
+//! reference: attitude from `q0..q3`, velocity and position NED.
+
+use super::table::{CsvTable, RowParser, RowStream, microseconds, number, unit_quaternion, optional_number, vector3};
+use super::{
+    GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind,
+    StreamKind, imu_event, mag_event, named, require,
+};
+use crate::scalar::Scalar;
+use crate::sensors::Geodetic;
+use csv::StringRecord;
+use std::path::{Path, PathBuf};
+
+/// The time column of every file of the format.
+pub const TIME_COLUMN: &str = "t_us";
+
+pub(crate) fn locate(files: &[PathBuf], searched: &str) -> Result<LogFiles, ReplayError> {
+    Ok(LogFiles {
+        format: LogFormat::Crate,
+        imu: require(files, "imu.csv", LogFormat::Crate, searched)?,
+        gps: require(files, "gps.csv", LogFormat::Crate, searched)?,
+        mag: named(files, "mag.csv").cloned(),
+        gps_accuracy: None,
+        reference: named(files, "truth.csv").cloned(),
+        params: None,
+    })
+}
+
+type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
+
+pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
+    let mut streams = vec![
+        (StreamKind::Imu, imu_stream(&files.imu)?),
+        (StreamKind::Gps, gps_stream(&files.gps)?),
+    ];
+    if let Some(mag) = &files.mag {
+        streams.push((StreamKind::Mag, mag_stream(mag)?));
+    }
+    Ok(streams)
+}
+
+struct ImuColumns {
+    t: usize,
+    gyro: [usize; 3],
+    accel: [usize; 3],
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        imu_event(microseconds(rec, self.t)?, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
+    }
+}
+
+/// The stream of an `imu.csv` of the crate's format.
+pub(crate) fn imu_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = ImuColumns {
+        t: table.column(TIME_COLUMN)?,
+        gyro: table.columns3(["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"])?,
+        accel: table.columns3(["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"])?,
+    };
+    Ok(RowStream::new(table, Box::new(parser), "imu"))
+}
+
+enum PositionColumns {
+    Geodetic([usize; 3]),
+    Ned([usize; 3]),
+}
+
+struct GpsColumns {
+    t: usize,
+    position: PositionColumns,
+    velocity: [usize; 3],
+    h_acc: Option<usize>,
+    v_acc: Option<usize>,
+    s_acc: Option<usize>,
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        let position = match self.position {
+            PositionColumns::Geodetic([lat, lon, alt]) => GpsRowPosition::Geodetic(Geodetic {
+                lat_deg: number(rec, lat)?,
+                lon_deg: number(rec, lon)?,
+                alt_m: number(rec, alt)?,
+            }),
+            PositionColumns::Ned(idx) => GpsRowPosition::Ned(vector3(rec, idx)?),
+        };
+        GpsRow {
+            t_us: microseconds(rec, self.t)?,
+            position,
+            velocity_ned_m_s: vector3(rec, self.velocity)?,
+            horizontal_accuracy_m: optional_number(rec, self.h_acc)?,
+            vertical_accuracy_m: optional_number(rec, self.v_acc)?,
+            speed_accuracy_m_s: optional_number(rec, self.s_acc)?,
+        }
+        .into_event()
+    }
+}
+
+/// The stream of a `gps.csv` of the crate's format.
+pub(crate) fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let position = match table.columns3(["lat_deg", "lon_deg", "alt_m"]) {
+        Ok(idx) => PositionColumns::Geodetic(idx),
+        Err(_) => match table.columns3(["pos_n_m", "pos_e_m", "pos_d_m"]) {
+            Ok(idx) => PositionColumns::Ned(idx),
+            Err(_) => {
+                return Err(ReplayError::MissingColumn {
+                    path: path.to_path_buf(),
+                    column: "lat_deg,lon_deg,alt_m | pos_n_m,pos_e_m,pos_d_m".to_string(),
+                });
+            }
+        },
+    };
+    let parser = GpsColumns {
+        t: table.column(TIME_COLUMN)?,
+        position,
+        velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
+        h_acc: table.find("h_acc_m"),
+        v_acc: table.find("v_acc_m"),
+        s_acc: table.find("s_acc_m_s"),
+    };
+    Ok(RowStream::new(table, Box::new(parser), "gps"))
+}
+
+struct MagColumns {
+    t: usize,
+    field: [usize; 3],
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+        mag_event(microseconds(rec, self.t)?, vector3(rec, self.field)?)
+    }
+}
+
+/// The stream of a `mag.csv` of the crate's format.
+pub(crate) fn mag_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = MagColumns {
+        t: table.column(TIME_COLUMN)?,
+        field: table.columns3(["mag_x", "mag_y", "mag_z"])?,
+    };
+    Ok(RowStream::new(table, Box::new(parser), "mag"))
+}
+
+struct TruthColumns {
+    t: usize,
+    q: [usize; 4],
+    velocity: [usize; 3],
+    position: [usize; 3],
+}
+
+impl RowParser<ReferenceSample> for TruthColumns {
+    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<ReferenceSample, SkipKind> {
+        Ok(ReferenceSample {
+            t_us: microseconds(rec, self.t)?,
+            attitude: unit_quaternion(rec, self.q)?,
+            velocity_ned_m_s: Some(vector3(rec, self.velocity)?),
+            position_ned_m: Some(vector3(rec, self.position)?),
+        })
+    }
+}
+
+/// The simulator's `truth.csv` as a reference stream.
+pub(crate) fn reference_stream(path: &Path) -> Result<RowStream<ReferenceSample>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = TruthColumns {
+        t: table.column(TIME_COLUMN)?,
+        q: table.columns4(["q0", "q1", "q2", "q3"])?,
+        velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
+        position: table.columns3(["pos_n_m", "pos_e_m", "pos_d_m"])?,
+    };
+    Ok(RowStream::new(table, Box::new(parser), "truth"))
+}
