@@ -26,10 +26,10 @@
 pub mod error;
 pub mod estimate;
 pub mod geo;
-pub mod scalar;
-pub mod sensors;
 #[cfg(feature = "replay")]
 pub mod replay;
+pub mod scalar;
+pub mod sensors;
 
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};

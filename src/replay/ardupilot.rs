@@ -24,8 +24,8 @@
 use super::table::{CsvTable, RowParser, RowStream, number, seconds_as_us, vector3};
 use super::{
     ArduPilotImu, ArduPilotReference, GpsRow, GpsRowPosition, LogFiles, LogFormat, ReaderOptions,
-    ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind, StreamKind,
-    imu_event, mag_event, named, require,
+    ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind,
+    StreamKind, imu_event, mag_event, named, require,
 };
 use crate::geo::quaternion_from_euler;
 use crate::scalar::Scalar;
@@ -58,13 +58,19 @@ pub const LOG171_ALIGNMENT: ReferenceAlignment = ReferenceAlignment {
     declination_rad: 11.8 * core::f64::consts::PI / 180.0,
 };
 
-pub(crate) fn locate(files: &[PathBuf], searched: &str, options: &ReaderOptions) -> Result<LogFiles, ReplayError> {
+pub(crate) fn locate(
+    files: &[PathBuf],
+    searched: &str,
+    options: &ReaderOptions,
+) -> Result<LogFiles, ReplayError> {
     let imu_name = match options.ardupilot_imu {
         ArduPilotImu::First => "imu.csv",
         ArduPilotImu::Second => "imu2.csv",
     };
     let reference = match options.ardupilot_reference {
-        ArduPilotReference::Ekf1 => named(files, "ekf1_reference.csv").or_else(|| named(files, "att.csv")),
+        ArduPilotReference::Ekf1 => {
+            named(files, "ekf1_reference.csv").or_else(|| named(files, "att.csv"))
+        }
         ArduPilotReference::Att => named(files, "att.csv"),
     };
     Ok(LogFiles {
@@ -83,7 +89,10 @@ type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
 pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
     let mut streams = vec![
         (StreamKind::Imu, imu_stream(&files.imu)?),
-        (StreamKind::Gps, gps_stream(&files.gps, files.gps_accuracy.as_deref())?),
+        (
+            StreamKind::Gps,
+            gps_stream(&files.gps, files.gps_accuracy.as_deref())?,
+        ),
     ];
     if let Some(mag) = &files.mag {
         streams.push((StreamKind::Mag, mag_stream(mag)?));
@@ -98,8 +107,16 @@ struct ImuColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
-        imu_event(seconds_as_us(rec, self.t)?, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
+        imu_event(
+            seconds_as_us(rec, self.t)?,
+            vector3(rec, self.gyro)?,
+            vector3(rec, self.accel)?,
+        )
     }
 }
 
@@ -119,14 +136,22 @@ enum VelocityColumns {
     Ned([usize; 3]),
     /// Ground speed (m/s), course over ground (deg, clockwise from true
     /// north) and vertical velocity (down positive).
-    SpeedCourse { speed: usize, course: usize, down: usize },
+    SpeedCourse {
+        speed: usize,
+        course: usize,
+        down: usize,
+    },
 }
 
 impl VelocityColumns {
     fn read(&self, rec: &StringRecord) -> Result<Vector3<f64>, SkipKind> {
         match *self {
             Self::Ned(idx) => vector3(rec, idx),
-            Self::SpeedCourse { speed, course, down } => {
+            Self::SpeedCourse {
+                speed,
+                course,
+                down,
+            } => {
                 let (s, c) = (number(rec, speed)?, number(rec, course)?.to_radians());
                 Ok(Vector3::new(s * c.cos(), s * c.sin(), number(rec, down)?))
             }
@@ -230,7 +255,11 @@ struct GpsColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
-    fn parse(&mut self, rec: &StringRecord, skips: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        skips: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = seconds_as_us(rec, self.t)?;
         if number(rec, self.fix)? < MIN_FIX_STATUS {
             return Err(SkipKind::NoFix);
@@ -255,7 +284,10 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
     }
 }
 
-fn gps_stream<T: Scalar>(path: &Path, accuracy: Option<&Path>) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+fn gps_stream<T: Scalar>(
+    path: &Path,
+    accuracy: Option<&Path>,
+) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
     let table = CsvTable::open(path)?;
     let velocity = match table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"]) {
         Ok(idx) => VelocityColumns::Ned(idx),
@@ -282,7 +314,11 @@ struct MagColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = seconds_as_us(rec, self.t)?;
         if let Some(h) = self.health
             && number(rec, h)? == 0.0
@@ -311,7 +347,11 @@ struct ReferenceColumns {
 }
 
 impl RowParser<ReferenceSample> for ReferenceColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<ReferenceSample, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<ReferenceSample, SkipKind> {
         let e = vector3(rec, self.euler_deg)?.map(f64::to_radians);
         Ok(ReferenceSample {
             t_us: seconds_as_us(rec, self.t)?,
@@ -337,7 +377,10 @@ pub(crate) fn reference_stream(path: &Path) -> Result<RowStream<ReferenceSample>
 
 /// Reads `params.csv` (`name,value`) into a map. Rows whose value is not a
 /// number are left out of the map and counted in `skips`.
-pub fn read_params(path: &Path, skips: &mut SkipCounts) -> Result<BTreeMap<String, f64>, ReplayError> {
+pub fn read_params(
+    path: &Path,
+    skips: &mut SkipCounts,
+) -> Result<BTreeMap<String, f64>, ReplayError> {
     let mut table = CsvTable::open(path)?;
     let (name, value) = (table.column("name")?, table.column("value")?);
     let label = table.label().to_string();
@@ -360,7 +403,10 @@ pub fn read_params(path: &Path, skips: &mut SkipCounts) -> Result<BTreeMap<Strin
 /// given declination (ArduPilot does not log the value `COMPASS_AUTODEC`
 /// looked up; `COMPASS_DEC` holds it only when set by hand, so it is used
 /// when `COMPASS_AUTODEC` is 0).
-pub fn alignment_from_params(params: &BTreeMap<String, f64>, declination_rad: f64) -> ReferenceAlignment {
+pub fn alignment_from_params(
+    params: &BTreeMap<String, f64>,
+    declination_rad: f64,
+) -> ReferenceAlignment {
     let manual_declination = params.get("COMPASS_AUTODEC") == Some(&0.0);
     ReferenceAlignment {
         trim_roll_rad: params.get("AHRS_TRIM_X").copied().unwrap_or(0.0),

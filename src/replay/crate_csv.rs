@@ -10,10 +10,12 @@
 //! counted as [`NoFix`](super::SkipKind::NoFix). `truth.csv` is read as the
 //! reference: attitude from `q0..q3`, velocity and position NED.
 
-use super::table::{CsvTable, RowParser, RowStream, microseconds, number, unit_quaternion, optional_number, vector3};
+use super::table::{
+    CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
+};
 use super::{
-    GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind,
-    StreamKind, imu_event, mag_event, named, require,
+    GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
+    SkipCounts, SkipKind, StreamKind, imu_event, mag_event, named, require,
 };
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
@@ -55,8 +57,16 @@ struct ImuColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
-        imu_event(microseconds(rec, self.t)?, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
+        imu_event(
+            microseconds(rec, self.t)?,
+            vector3(rec, self.gyro)?,
+            vector3(rec, self.accel)?,
+        )
     }
 }
 
@@ -86,7 +96,11 @@ struct GpsColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         let position = match self.position {
             PositionColumns::Geodetic([lat, lon, alt]) => GpsRowPosition::Geodetic(Geodetic {
                 lat_deg: number(rec, lat)?,
@@ -139,7 +153,11 @@ struct MagColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         mag_event(microseconds(rec, self.t)?, vector3(rec, self.field)?)
     }
 }
@@ -162,7 +180,11 @@ struct TruthColumns {
 }
 
 impl RowParser<ReferenceSample> for TruthColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<ReferenceSample, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<ReferenceSample, SkipKind> {
         Ok(ReferenceSample {
             t_us: microseconds(rec, self.t)?,
             attitude: unit_quaternion(rec, self.q)?,

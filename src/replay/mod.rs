@@ -49,7 +49,7 @@ use crate::sensors::{Geodetic, Gps, GpsPosition, Imu, Mag, checked_gps, checked_
 use nalgebra::{UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use table::RowStream;
 
 /// One sample of the merged stream.
@@ -258,7 +258,12 @@ impl fmt::Display for SkipCounts {
     /// One line per file: `gps.csv: 1038 accepted, 161 skipped (no_fix 161)`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         for (name, c) in &self.files {
-            write!(f, "{name}: {} accepted, {} skipped", c.accepted, c.skipped_total())?;
+            write!(
+                f,
+                "{name}: {} accepted, {} skipped",
+                c.accepted,
+                c.skipped_total()
+            )?;
             let kinds: Vec<String> = SkipKind::ALL
                 .iter()
                 .filter(|&&k| c.skipped(k) > 0)
@@ -422,13 +427,17 @@ impl LogFiles {
     /// used) or a file. With `format == None` the layout is detected: PX4
     /// when a `*_sensor_combined_*.csv` is present, else from the time column
     /// of `imu.csv` (`t_us`: the crate's format, `t_s`: ArduPilot).
-    pub fn locate(
-        inputs: &[PathBuf],
+    pub fn locate<P: AsRef<Path>>(
+        inputs: &[P],
         format: Option<LogFormat>,
         options: &ReaderOptions,
     ) -> Result<Self, ReplayError> {
         let files = list_files(inputs)?;
-        let searched = inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
+        let searched = inputs
+            .iter()
+            .map(|p| p.as_ref().display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
         let format = match format {
             Some(f) => f,
             None => detect_format(&files, &searched)?,
@@ -442,12 +451,12 @@ impl LogFiles {
 }
 
 /// The files named by the inputs: directories are listed (not recursively), in name order.
-fn list_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, ReplayError> {
+fn list_files<P: AsRef<Path>>(inputs: &[P]) -> Result<Vec<PathBuf>, ReplayError> {
     let mut files = Vec::new();
-    for input in inputs {
+    for input in inputs.iter().map(AsRef::as_ref) {
         if input.is_dir() {
             let entries = std::fs::read_dir(input).map_err(|source| ReplayError::Open {
-                path: input.clone(),
+                path: input.to_path_buf(),
                 source,
             })?;
             let mut found: Vec<PathBuf> = entries
@@ -457,11 +466,14 @@ fn list_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, ReplayError> {
             found.sort();
             files.extend(found);
         } else if input.is_file() {
-            files.push(input.clone());
+            files.push(input.to_path_buf());
         } else {
             return Err(ReplayError::Open {
-                path: input.clone(),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file or directory"),
+                path: input.to_path_buf(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "no such file or directory",
+                ),
             });
         }
     }
@@ -470,7 +482,9 @@ fn list_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, ReplayError> {
 
 /// The file of `files` with exactly this file name.
 pub(crate) fn named<'a>(files: &'a [PathBuf], name: &str) -> Option<&'a PathBuf> {
-    files.iter().find(|p| p.file_name().is_some_and(|n| n == name))
+    files
+        .iter()
+        .find(|p| p.file_name().is_some_and(|n| n == name))
 }
 
 fn detect_format(files: &[PathBuf], searched: &str) -> Result<LogFormat, ReplayError> {
@@ -498,11 +512,13 @@ pub(crate) fn require(
     format: LogFormat,
     searched: &str,
 ) -> Result<PathBuf, ReplayError> {
-    named(files, name).cloned().ok_or_else(|| ReplayError::MissingFile {
-        what: name,
-        format,
-        searched: searched.to_string(),
-    })
+    named(files, name)
+        .cloned()
+        .ok_or_else(|| ReplayError::MissingFile {
+            what: name,
+            format,
+            searched: searched.to_string(),
+        })
 }
 
 /// One file's stream inside the merge, with the sample at its head.
@@ -546,7 +562,11 @@ impl<T: Scalar> LogReader<T> {
                 .map(|(kind, stream)| MergeInput {
                     stream,
                     head: None,
-                    shift_us: if kind == StreamKind::Gps { options.gps_delay_added_us } else { 0 },
+                    shift_us: if kind == StreamKind::Gps {
+                        options.gps_delay_added_us
+                    } else {
+                        0
+                    },
                 })
                 .collect(),
             skips: SkipCounts::default(),
@@ -559,8 +579,8 @@ impl<T: Scalar> LogReader<T> {
     }
 
     /// Locates and opens a log in one call.
-    pub fn open_paths(
-        inputs: &[PathBuf],
+    pub fn open_paths<P: AsRef<Path>>(
+        inputs: &[P],
         format: Option<LogFormat>,
         options: &ReaderOptions,
     ) -> Result<Self, ReplayError> {
@@ -615,7 +635,10 @@ pub(crate) fn imu_event<T: Scalar>(
 }
 
 /// A magnetometer event from `f64` values, checked.
-pub(crate) fn mag_event<T: Scalar>(t_us: u64, field_body: Vector3<f64>) -> Result<SensorEvent<T>, SkipKind> {
+pub(crate) fn mag_event<T: Scalar>(
+    t_us: u64,
+    field_body: Vector3<f64>,
+) -> Result<SensorEvent<T>, SkipKind> {
     let mag = Mag {
         t_us,
         field_body: field_body.map(T::lit),

@@ -19,10 +19,12 @@
 //! `s_variance_m_s` (a standard deviation despite its name) become the fix's
 //! accuracies.
 
-use super::table::{CsvTable, RowParser, RowStream, microseconds, number, unit_quaternion, optional_number, vector3};
+use super::table::{
+    CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
+};
 use super::{
-    GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind,
-    StreamKind, imu_event, mag_event,
+    GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
+    SkipCounts, SkipKind, StreamKind, imu_event, mag_event,
 };
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
@@ -61,12 +63,18 @@ pub fn find_topic<'a>(files: &'a [PathBuf], topic: &str) -> Option<&'a PathBuf> 
         .map(|(_, p)| p)
 }
 
-fn require_topic(files: &[PathBuf], topic: &'static str, searched: &str) -> Result<PathBuf, ReplayError> {
-    find_topic(files, topic).cloned().ok_or_else(|| ReplayError::MissingFile {
-        what: topic,
-        format: LogFormat::Px4,
-        searched: searched.to_string(),
-    })
+fn require_topic(
+    files: &[PathBuf],
+    topic: &'static str,
+    searched: &str,
+) -> Result<PathBuf, ReplayError> {
+    find_topic(files, topic)
+        .cloned()
+        .ok_or_else(|| ReplayError::MissingFile {
+            what: topic,
+            format: LogFormat::Px4,
+            searched: searched.to_string(),
+        })
 }
 
 pub(crate) fn locate(files: &[PathBuf], searched: &str) -> Result<LogFiles, ReplayError> {
@@ -115,7 +123,11 @@ struct ImuColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = microseconds(rec, self.t)?;
         if let Some(rel) = optional_number(rec, self.accel_relative)?
             && rel == RELATIVE_TIMESTAMP_INVALID as f64
@@ -162,7 +174,11 @@ struct GpsColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = microseconds(rec, self.t)?;
         if number(rec, self.fix)? < MIN_FIX_TYPE {
             return Err(SkipKind::NoFix);
@@ -227,7 +243,11 @@ struct MagColumns {
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<SensorEvent<T>, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
         mag_event(microseconds(rec, self.t)?, vector3(rec, self.field)?)
     }
 }
@@ -247,7 +267,11 @@ struct AttitudeColumns {
 }
 
 impl RowParser<ReferenceSample> for AttitudeColumns {
-    fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<ReferenceSample, SkipKind> {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<ReferenceSample, SkipKind> {
         Ok(ReferenceSample {
             t_us: microseconds(rec, self.t)?,
             attitude: unit_quaternion(rec, self.q)?,

@@ -67,7 +67,11 @@ impl CsvTable {
 
     /// Indices of three required columns.
     pub(crate) fn columns3(&self, names: [&str; 3]) -> Result<[usize; 3], ReplayError> {
-        Ok([self.column(names[0])?, self.column(names[1])?, self.column(names[2])?])
+        Ok([
+            self.column(names[0])?,
+            self.column(names[1])?,
+            self.column(names[2])?,
+        ])
     }
 
     /// Indices of four required columns.
@@ -112,11 +116,18 @@ fn cell(rec: &StringRecord, idx: usize) -> Result<&str, SkipKind> {
 /// infinite is `NonFinite`.
 pub(crate) fn number(rec: &StringRecord, idx: usize) -> Result<f64, SkipKind> {
     let v: f64 = cell(rec, idx)?.parse().map_err(|_| SkipKind::Unparsable)?;
-    if v.is_finite() { Ok(v) } else { Err(SkipKind::NonFinite) }
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(SkipKind::NonFinite)
+    }
 }
 
 /// An optional number: no column or an empty cell is `None`.
-pub(crate) fn optional_number(rec: &StringRecord, idx: Option<usize>) -> Result<Option<f64>, SkipKind> {
+pub(crate) fn optional_number(
+    rec: &StringRecord,
+    idx: Option<usize>,
+) -> Result<Option<f64>, SkipKind> {
     match idx {
         Some(i) if !cell(rec, i)?.is_empty() => number(rec, i).map(Some),
         _ => Ok(None),
@@ -125,14 +136,26 @@ pub(crate) fn optional_number(rec: &StringRecord, idx: Option<usize>) -> Result<
 
 /// Three required numbers as a vector.
 pub(crate) fn vector3(rec: &StringRecord, idx: [usize; 3]) -> Result<Vector3<f64>, SkipKind> {
-    Ok(Vector3::new(number(rec, idx[0])?, number(rec, idx[1])?, number(rec, idx[2])?))
+    Ok(Vector3::new(
+        number(rec, idx[0])?,
+        number(rec, idx[1])?,
+        number(rec, idx[2])?,
+    ))
 }
 
 /// A scalar-first quaternion `[w, x, y, z]` normalized; a norm far from one
 /// (below 0.5) is `OutOfRange`.
-pub(crate) fn unit_quaternion(rec: &StringRecord, idx: [usize; 4]) -> Result<UnitQuaternion<f64>, SkipKind> {
+pub(crate) fn unit_quaternion(
+    rec: &StringRecord,
+    idx: [usize; 4],
+) -> Result<UnitQuaternion<f64>, SkipKind> {
     let [w, x, y, z] = idx;
-    let q = Quaternion::new(number(rec, w)?, number(rec, x)?, number(rec, y)?, number(rec, z)?);
+    let q = Quaternion::new(
+        number(rec, w)?,
+        number(rec, x)?,
+        number(rec, y)?,
+        number(rec, z)?,
+    );
     if q.norm() < 0.5 {
         return Err(SkipKind::OutOfRange);
     }
@@ -178,7 +201,11 @@ pub(crate) struct RowStream<Out> {
 }
 
 impl<Out: Timed> RowStream<Out> {
-    pub(crate) fn new(table: CsvTable, parser: Box<dyn RowParser<Out>>, stream: &'static str) -> Self {
+    pub(crate) fn new(
+        table: CsvTable,
+        parser: Box<dyn RowParser<Out>>,
+        stream: &'static str,
+    ) -> Self {
         Self {
             table,
             parser,

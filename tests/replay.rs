@@ -1,0 +1,713 @@
+//! replay: the readers on the real ArduPilot log (when `../shared` is there)
+//! and on small CSV files of every layout written by the tests themselves.
+#![cfg(feature = "replay")]
+
+use approx::assert_relative_eq;
+use delaynav::geo::{euler_from_quaternion, quaternion_from_euler, roll_pitch_from_accel};
+use delaynav::replay::{
+    LogFiles, LogFormat, LogReader, ReaderOptions, ReferenceReader, ReplayError, SensorEvent,
+    SkipCounts, SkipKind, StreamKind, ardupilot,
+};
+use delaynav::{GpsPosition, Scalar};
+use std::path::{Path, PathBuf};
+
+const LOG171: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/data/ardupilot-log171"
+);
+
+/// The real log's directory, or `None` (with a note) when it is absent on a
+/// user's machine. In CI (`CI=true`) its absence fails the test.
+fn log171() -> Option<PathBuf> {
+    let dir = PathBuf::from(LOG171);
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("CI=true but {LOG171} is missing: the real-log tests cannot run");
+    }
+    println!("skipped: ../shared/data/ardupilot-log171 not found");
+    None
+}
+
+/// The rows of a CSV file as text cells, read independently of the crate's
+/// readers (plain split: the log has no quoting).
+fn raw_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+fn column(header: &[String], name: &str) -> usize {
+    header.iter().position(|h| h == name).unwrap()
+}
+
+fn read_all<T: Scalar>(dir: &Path, options: &ReaderOptions) -> (Vec<SensorEvent<T>>, SkipCounts) {
+    let mut reader = LogReader::<T>::open_paths(&[dir], None, options).unwrap();
+    let events: Vec<_> = reader.by_ref().collect();
+    (events, reader.skip_counts().clone())
+}
+
+fn assert_time_ordered<T: Scalar>(events: &[SensorEvent<T>]) {
+    for pair in events.windows(2) {
+        let (a, b) = (
+            (pair[0].time_us(), pair[0].kind()),
+            (pair[1].time_us(), pair[1].kind()),
+        );
+        assert!(a < b, "merged stream out of order: {a:?} then {b:?}");
+    }
+}
+
+#[test]
+fn ardupilot_log_is_detected_with_its_files() {
+    let Some(dir) = log171() else { return };
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    assert_eq!(files.format, LogFormat::ArduPilot);
+    assert_eq!(files.imu, dir.join("imu.csv"));
+    assert_eq!(files.gps, dir.join("gps.csv"));
+    assert_eq!(files.mag, Some(dir.join("mag.csv")));
+    assert_eq!(files.gps_accuracy, Some(dir.join("gps_accuracy.csv")));
+    assert_eq!(files.reference, Some(dir.join("ekf1_reference.csv")));
+    let second = ReaderOptions {
+        ardupilot_imu: delaynav::replay::ArduPilotImu::Second,
+        ..ReaderOptions::default()
+    };
+    let files = LogFiles::locate(&[&dir], Some(LogFormat::ArduPilot), &second).unwrap();
+    assert_eq!(files.imu, dir.join("imu2.csv"));
+}
+
+fn ardupilot_counts_match_the_files<T: Scalar>() {
+    let Some(dir) = log171() else { return };
+    let (events, skips) = read_all::<T>(&dir, &ReaderOptions::default());
+    let (_, imu_rows) = raw_rows(&dir.join("imu.csv"));
+    let (gps_header, gps_rows) = raw_rows(&dir.join("gps.csv"));
+    let (_, mag_rows) = raw_rows(&dir.join("mag.csv"));
+    let fix = column(&gps_header, "fix_status");
+    let with_fix = gps_rows
+        .iter()
+        .filter(|r| r[fix].parse::<f64>().unwrap() >= 3.0)
+        .count();
+
+    let count = |k: StreamKind| events.iter().filter(|e| e.kind() == k).count();
+    assert_eq!(count(StreamKind::Imu), imu_rows.len());
+    assert_eq!(count(StreamKind::Mag), mag_rows.len());
+    assert_eq!(count(StreamKind::Gps), with_fix);
+    assert!(with_fix > 1000 && with_fix < gps_rows.len());
+
+    let gps = skips.file("gps.csv").unwrap();
+    assert_eq!(gps.accepted as usize, with_fix);
+    assert_eq!(
+        gps.skipped(SkipKind::NoFix) as usize,
+        gps_rows.len() - with_fix
+    );
+    assert_eq!(gps.skipped_total(), gps.skipped(SkipKind::NoFix));
+    assert_eq!(skips.file("imu.csv").unwrap().skipped_total(), 0);
+    assert_eq!(skips.file("mag.csv").unwrap().skipped_total(), 0);
+    assert_time_ordered(&events);
+}
+
+#[test]
+fn ardupilot_counts_match_the_files_f64() {
+    ardupilot_counts_match_the_files::<f64>();
+}
+
+#[test]
+fn ardupilot_counts_match_the_files_f32() {
+    ardupilot_counts_match_the_files::<f32>();
+}
+
+#[test]
+fn ardupilot_accuracy_duplicates_are_counted() {
+    let Some(dir) = log171() else { return };
+    let (_, rows) = raw_rows(&dir.join("gps_accuracy.csv"));
+    let repeats = rows.windows(2).filter(|w| w[0][0] == w[1][0]).count();
+    assert!(repeats > 0, "log171's gps_accuracy.csv repeats timestamps");
+    let (_, skips) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let acc = skips.file("gps_accuracy.csv").unwrap();
+    assert_eq!(acc.skipped(SkipKind::Duplicate) as usize, repeats);
+    assert_eq!(skips.count(SkipKind::Duplicate) as usize, repeats);
+    // The report prints every file with its kinds.
+    let report = skips.to_string();
+    println!("{report}");
+    assert!(
+        report.contains("gps.csv:") && report.contains("no_fix"),
+        "{report}"
+    );
+    assert!(report.contains("duplicate"), "{report}");
+}
+
+#[test]
+fn ardupilot_first_fix_has_file_values_and_joined_accuracy() {
+    let Some(dir) = log171() else { return };
+    let (header, rows) = raw_rows(&dir.join("gps.csv"));
+    let fix = column(&header, "fix_status");
+    let first = rows
+        .iter()
+        .find(|r| r[fix].parse::<f64>().unwrap() >= 3.0)
+        .unwrap();
+    let value = |name: &str| first[column(&header, name)].parse::<f64>().unwrap();
+    let (acc_header, acc_rows) = raw_rows(&dir.join("gps_accuracy.csv"));
+    let acc = acc_rows
+        .iter()
+        .find(|r| r[0] == first[0])
+        .expect("an accuracy row at the fix time");
+    let acc_value = |name: &str| acc[column(&acc_header, name)].parse::<f64>().unwrap();
+
+    let (events, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let gps = events
+        .iter()
+        .find_map(|e| {
+            if let SensorEvent::Gps(g) = e {
+                Some(*g)
+            } else {
+                None
+            }
+        })
+        .unwrap();
+    assert_eq!(gps.t_us, (value("t_s") * 1e6).round() as u64);
+    // README: GPS 3D fix from about 45 s.
+    assert!(
+        (44.0..46.0).contains(&(gps.t_us as f64 * 1e-6)),
+        "first fix at {} us",
+        gps.t_us
+    );
+    let GpsPosition::Geodetic(g) = gps.position else {
+        panic!("ArduPilot fixes are geodetic")
+    };
+    assert_eq!(g.lat_deg, value("lat_deg"));
+    assert_eq!(g.lon_deg, value("lon_deg"));
+    assert_eq!(g.alt_m, value("alt_msl_m"));
+    assert_eq!(gps.velocity_ned_m_s.x, value("vel_n_m_s"));
+    assert_eq!(gps.velocity_ned_m_s.y, value("vel_e_m_s"));
+    assert_eq!(gps.velocity_ned_m_s.z, value("vel_d_m_s"));
+    assert_eq!(gps.horizontal_accuracy_m, Some(acc_value("hAcc_m")));
+    assert_eq!(gps.vertical_accuracy_m, Some(acc_value("vAcc_m")));
+    assert_eq!(gps.speed_accuracy_m_s, Some(acc_value("sAcc_m_s")));
+    // Every fix found an accuracy row within 50 ms (both files run at 5 Hz on one clock).
+    let joined = events
+        .iter()
+        .filter(|e| matches!(e, SensorEvent::Gps(g) if g.horizontal_accuracy_m.is_some()))
+        .count();
+    let fixes = events
+        .iter()
+        .filter(|e| e.kind() == StreamKind::Gps)
+        .count();
+    assert_eq!(joined, fixes);
+}
+
+#[test]
+fn ardupilot_velocity_matches_speed_and_course() {
+    // The file's NED columns agree with its speed/course columns, which the
+    // reader uses when the NED columns are absent.
+    let Some(dir) = log171() else { return };
+    let (header, rows) = raw_rows(&dir.join("gps.csv"));
+    let get = |r: &Vec<String>, n: &str| r[column(&header, n)].parse::<f64>().unwrap();
+    let mut checked = 0;
+    for r in rows.iter().filter(|r| get(r, "speed_m_s") > 2.0) {
+        let (s, c) = (get(r, "speed_m_s"), get(r, "course_deg").to_radians());
+        assert_relative_eq!(get(r, "vel_n_m_s"), s * c.cos(), epsilon = 1e-3);
+        assert_relative_eq!(get(r, "vel_e_m_s"), s * c.sin(), epsilon = 1e-3);
+        checked += 1;
+    }
+    assert!(checked > 100, "only {checked} moving rows");
+}
+
+#[test]
+fn ardupilot_magnetometer_is_in_gauss() {
+    let Some(dir) = log171() else { return };
+    let (header, rows) = raw_rows(&dir.join("mag.csv"));
+    let x0 = rows[0][column(&header, "mag_x_mGauss")]
+        .parse::<f64>()
+        .unwrap();
+    let (events, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let mags: Vec<f64> = events
+        .iter()
+        .filter_map(|e| {
+            if let SensorEvent::Mag(m) = e {
+                Some(m.field_body.norm())
+            } else {
+                None
+            }
+        })
+        .collect();
+    let first = events
+        .iter()
+        .find_map(|e| {
+            if let SensorEvent::Mag(m) = e {
+                Some(*m)
+            } else {
+                None
+            }
+        })
+        .unwrap();
+    assert_eq!(first.field_body.x, x0 / 1000.0);
+    let mut sorted = mags.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    // Earth's field at Canberra is about 0.58 gauss; a magnetometer reads
+    // within a few tens of percent of it.
+    assert!((0.3..0.9).contains(&median), "median |mag| {median} gauss");
+}
+
+#[test]
+fn ardupilot_added_gps_delay_shifts_fixes_only() {
+    let Some(dir) = log171() else { return };
+    let (plain, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let options = ReaderOptions {
+        gps_delay_added_us: 300_000,
+        ..ReaderOptions::default()
+    };
+    let (delayed, skips) = read_all::<f64>(&dir, &options);
+    assert_eq!(plain.len(), delayed.len());
+    assert_time_ordered(&delayed);
+    let times = |events: &[SensorEvent<f64>], k| -> Vec<u64> {
+        events
+            .iter()
+            .filter(|e| e.kind() == k)
+            .map(|e| e.time_us())
+            .collect()
+    };
+    for (a, b) in times(&plain, StreamKind::Gps)
+        .iter()
+        .zip(times(&delayed, StreamKind::Gps))
+    {
+        assert_eq!(a + 300_000, b);
+    }
+    assert_eq!(
+        times(&plain, StreamKind::Imu),
+        times(&delayed, StreamKind::Imu)
+    );
+    assert!(skips.count(SkipKind::NoFix) > 0);
+}
+
+#[test]
+fn ardupilot_reference_and_trim() {
+    let Some(dir) = log171() else { return };
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    let mut params_skips = SkipCounts::default();
+    let params = ardupilot::read_params(files.params.as_ref().unwrap(), &mut params_skips).unwrap();
+    assert_eq!(params_skips.total(), 0);
+    let alignment =
+        ardupilot::alignment_from_params(&params, ardupilot::LOG171_ALIGNMENT.declination_rad);
+    assert_eq!(alignment, ardupilot::LOG171_ALIGNMENT);
+
+    let (ref_header, ref_rows) = raw_rows(&dir.join("ekf1_reference.csv"));
+    let mut reference = ReferenceReader::open(&files).unwrap().unwrap();
+    let samples: Vec<_> = reference.by_ref().collect();
+    assert_eq!(samples.len(), ref_rows.len());
+    assert_eq!(reference.skip_counts().total(), 0);
+    let roll0 = ref_rows[0][column(&ref_header, "roll_deg")]
+        .parse::<f64>()
+        .unwrap();
+    assert_relative_eq!(
+        euler_from_quaternion(samples[0].attitude.quaternion())
+            .x
+            .to_degrees(),
+        roll0,
+        epsilon = 1e-9
+    );
+    assert!(
+        samples
+            .iter()
+            .all(|s| s.velocity_ned_m_s.is_some() && s.position_ned_m.is_some())
+    );
+
+    // On the ground (50-70 s) the accelerometer's roll and pitch describe the
+    // IMU frame; aligned by the trim they match the onboard attitude far
+    // better than unaligned (README: 2.68/1.46 deg against 1.45/1.10 deg).
+    let (events, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let ground = |t: u64| (50_000_000..70_000_000).contains(&t);
+    let (mut sum_roll, mut sum_pitch, mut n) = (0.0, 0.0, 0.0);
+    for e in &events {
+        if let SensorEvent::Imu(imu) = e
+            && ground(imu.t_us)
+        {
+            let (r, p) = roll_pitch_from_accel(&imu.accel_m_s2);
+            sum_roll += r;
+            sum_pitch += p;
+            n += 1.0;
+        }
+    }
+    let ref_ground: Vec<_> = samples.iter().filter(|s| ground(s.t_us)).collect();
+    let ref_mean = |i: usize| {
+        ref_ground
+            .iter()
+            .map(|s| euler_from_quaternion(s.attitude.quaternion())[i])
+            .sum::<f64>()
+            / ref_ground.len() as f64
+    };
+    let imu_attitude = quaternion_from_euler(sum_roll / n, sum_pitch / n, 0.0);
+    let aligned = euler_from_quaternion(
+        alignment
+            .align_estimate(&imu_attitude, alignment.declination_rad)
+            .quaternion(),
+    );
+    let (raw_gap, aligned_gap) = (
+        (
+            (sum_roll / n - ref_mean(0)).to_degrees(),
+            (sum_pitch / n - ref_mean(1)).to_degrees(),
+        ),
+        (
+            (aligned.x - ref_mean(0)).to_degrees(),
+            (aligned.y - ref_mean(1)).to_degrees(),
+        ),
+    );
+    println!("ground gaps, deg (roll, pitch): unaligned {raw_gap:?}, aligned {aligned_gap:?}");
+    assert!(raw_gap.0.abs() > 0.9, "unaligned roll gap {raw_gap:?}");
+    assert!(
+        aligned_gap.0.abs() < 0.1 && aligned_gap.1.abs() < 0.1,
+        "aligned gaps {aligned_gap:?}"
+    );
+    assert!(aligned_gap.1.abs() < raw_gap.1.abs());
+}
+
+#[test]
+fn alignment_rotates_yaw_by_the_missing_declination() {
+    let a = ardupilot::LOG171_ALIGNMENT;
+    let q = quaternion_from_euler(0.1, -0.2, 0.5);
+    let aligned = a.align_estimate(&(q * a.trim()), 0.0);
+    let e = euler_from_quaternion(aligned.quaternion());
+    assert_relative_eq!(e.x, 0.1, epsilon = 1e-12);
+    assert_relative_eq!(e.y, -0.2, epsilon = 1e-12);
+    assert_relative_eq!(e.z, 0.5 + a.declination_rad, epsilon = 1e-12);
+    // An estimator already configured with the declination needs no yaw turn.
+    let same = a.align_estimate(&(q * a.trim()), a.declination_rad);
+    assert_relative_eq!(same.angle_to(&q), 0.0, epsilon = 1e-12);
+}
+
+// ---------------------------------------------------------------------------
+// Small files written by the tests.
+
+/// A fresh, empty temporary directory for one test.
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("delaynav-replay-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write(dir: &Path, name: &str, text: &str) {
+    std::fs::write(dir.join(name), text).unwrap();
+}
+
+#[test]
+fn crate_csv_rows_ties_and_skips() {
+    let dir = temp_dir("crate");
+    // Columns in a free order, an extra column, and one bad row of each kind.
+    write(
+        &dir,
+        "imu.csv",
+        "acc_x_m_s2,acc_y_m_s2,acc_z_m_s2,t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,extra\n\
+         0.1,0.2,-9.8,1000,0.01,0.02,0.03,x\n\
+         0.1,0.2,-9.8,2000,NaN,0.02,0.03,x\n\
+         0.1,0.2,-9.8,2000,0.01,0.02,0.03,x\n\
+         0.1,0.2,-9.8,2000,0.01,0.02,0.03,x\n\
+         0.1,0.2,-9.8,1500,0.01,0.02,0.03,x\n\
+         0.1,abc,-9.8,2500,0.01,0.02,0.03,x\n\
+         0.1,0.2,-9.8,-3000,0.01,0.02,0.03,x\n\
+         0.1,0.2,-9.8,3000,0.01,0.02,0.03,x\n",
+    );
+    write(
+        &dir,
+        "gps.csv",
+        "t_us,lat_deg,lon_deg,alt_m,pos_n_m,pos_e_m,pos_d_m,vel_n_m_s,vel_e_m_s,vel_d_m_s,h_acc_m,v_acc_m,s_acc_m_s\n\
+         2000,-35.36,149.16,580,1,2,3,1.5,-0.5,0.25,,,\n\
+         3000,95.0,149.16,580,1,2,3,1.5,-0.5,0.25,2.5,4,0.3\n\
+         3000,-35.36,149.16,580,1,2,3,1.5,-0.5,0.25,2.5,4,0.3\n\
+         4000,-35.36,149.16,580,1,2,3,1.5,-0.5,0.25,0,4,0.3\n",
+    );
+    write(
+        &dir,
+        "mag.csv",
+        "t_us,mag_x,mag_y,mag_z\n2000,0.2,0,0.5\n2500,0,0,0\n3000,inf,0,0.5\n",
+    );
+
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    assert_eq!(files.format, LogFormat::Crate);
+    assert_eq!(files.reference, None);
+    let mut reader = LogReader::<f64>::open(&files, &ReaderOptions::default()).unwrap();
+    let events: Vec<_> = reader.by_ref().collect();
+    let order: Vec<_> = events.iter().map(|e| (e.time_us(), e.kind())).collect();
+    assert_eq!(
+        order,
+        [
+            (1000, StreamKind::Imu),
+            (2000, StreamKind::Imu),
+            (2000, StreamKind::Mag),
+            (2000, StreamKind::Gps),
+            (3000, StreamKind::Imu),
+            (3000, StreamKind::Gps),
+        ]
+    );
+    let SensorEvent::Imu(imu) = events[0] else {
+        panic!()
+    };
+    assert_eq!(imu.gyro_rad_s.as_slice(), &[0.01, 0.02, 0.03]);
+    assert_eq!(imu.accel_m_s2.as_slice(), &[0.1, 0.2, -9.8]);
+    let SensorEvent::Gps(first) = events[3] else {
+        panic!()
+    };
+    assert!(
+        matches!(first.position, GpsPosition::Geodetic(g) if g.lat_deg == -35.36 && g.alt_m == 580.0)
+    );
+    assert_eq!(first.horizontal_accuracy_m, None);
+    let SensorEvent::Gps(second) = events[5] else {
+        panic!()
+    };
+    assert_eq!(second.horizontal_accuracy_m, Some(2.5));
+    assert_eq!(second.speed_accuracy_m_s, Some(0.3));
+
+    let skips = reader.skip_counts();
+    let imu = skips.file("imu.csv").unwrap();
+    assert_eq!(imu.accepted, 3);
+    assert_eq!(imu.skipped(SkipKind::NonFinite), 1);
+    assert_eq!(imu.skipped(SkipKind::Duplicate), 1);
+    assert_eq!(imu.skipped(SkipKind::TimeWentBackwards), 1);
+    assert_eq!(imu.skipped(SkipKind::Unparsable), 1);
+    assert_eq!(imu.skipped(SkipKind::OutOfRange), 1);
+    let gps = skips.file("gps.csv").unwrap();
+    // Latitude 95 deg and a zero accuracy are out of range.
+    assert_eq!((gps.accepted, gps.skipped(SkipKind::OutOfRange)), (2, 2));
+    let mag = skips.file("mag.csv").unwrap();
+    assert_eq!(
+        (
+            mag.accepted,
+            mag.skipped(SkipKind::OutOfRange),
+            mag.skipped(SkipKind::NonFinite)
+        ),
+        (1, 1, 1)
+    );
+    assert_eq!(skips.total(), 5 + 2 + 2);
+    assert_eq!(
+        skips.by_kind(),
+        [
+            (SkipKind::Unparsable, 1),
+            (SkipKind::NonFinite, 2),
+            (SkipKind::OutOfRange, 4),
+            (SkipKind::TimeWentBackwards, 1),
+            (SkipKind::Duplicate, 1)
+        ]
+    );
+}
+
+#[test]
+fn crate_csv_ned_positions_and_truth_reference() {
+    let dir = temp_dir("crate-ned");
+    write(
+        &dir,
+        "imu.csv",
+        "t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2\n10,0,0,0,0,0,-9.81\n",
+    );
+    write(
+        &dir,
+        "gps.csv",
+        "t_us,pos_n_m,pos_e_m,pos_d_m,vel_n_m_s,vel_e_m_s,vel_d_m_s\n20,1.5,-2,3,0,0,0\n",
+    );
+    let q = quaternion_from_euler(0.1, 0.2, 0.3);
+    let qq = q.quaternion();
+    write(
+        &dir,
+        "truth.csv",
+        &format!(
+            "t_us,q0,q1,q2,q3,pos_n_m,pos_e_m,pos_d_m,vel_n_m_s,vel_e_m_s,vel_d_m_s\n10,{},{},{},{},1,2,3,4,5,6\n",
+            qq.w, qq.i, qq.j, qq.k
+        ),
+    );
+    let files = LogFiles::locate(
+        &[
+            dir.join("imu.csv"),
+            dir.join("gps.csv"),
+            dir.join("truth.csv"),
+        ],
+        None,
+        &ReaderOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(files.mag, None);
+    let events: Vec<SensorEvent<f32>> = LogReader::open(&files, &ReaderOptions::default())
+        .unwrap()
+        .collect();
+    assert_eq!(events.len(), 2);
+    let SensorEvent::Gps(g) = events[1] else {
+        panic!()
+    };
+    assert!(matches!(g.position, GpsPosition::Ned(p) if p.as_slice() == [1.5f32, -2.0, 3.0]));
+    let truth: Vec<_> = ReferenceReader::open(&files).unwrap().unwrap().collect();
+    assert_eq!(truth.len(), 1);
+    assert_relative_eq!(truth[0].attitude.angle_to(&q), 0.0, epsilon = 1e-12);
+    assert_eq!(
+        truth[0].velocity_ned_m_s.unwrap().as_slice(),
+        &[4.0, 5.0, 6.0]
+    );
+}
+
+#[test]
+fn missing_files_and_columns_are_errors() {
+    let dir = temp_dir("missing");
+    write(
+        &dir,
+        "imu.csv",
+        "t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2\n",
+    );
+    let err = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ReplayError::MissingFile {
+                what: "gps.csv",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    write(&dir, "gps.csv", "t_us,vel_n_m_s,vel_e_m_s,vel_d_m_s\n");
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    let err = LogReader::<f64>::open(&files, &ReaderOptions::default())
+        .err()
+        .unwrap();
+    assert!(
+        matches!(&err, ReplayError::MissingColumn { column, .. } if column.contains("lat_deg")),
+        "{err}"
+    );
+    let empty = temp_dir("unknown");
+    let err = LogFiles::locate(&[empty], None, &ReaderOptions::default()).unwrap_err();
+    assert!(matches!(err, ReplayError::UnknownFormat { .. }), "{err}");
+    assert!(matches!(
+        LogFormat::parse_choice("rosbag"),
+        Err(ReplayError::UnknownFormatName(_))
+    ));
+    assert_eq!(LogFormat::parse_choice("auto").unwrap(), None);
+}
+
+const PX4_IMU: &str = "timestamp,gyro_rad[0],gyro_rad[1],gyro_rad[2],gyro_integral_dt,accelerometer_timestamp_relative,accelerometer_m_s2[0],accelerometer_m_s2[1],accelerometer_m_s2[2],accelerometer_integral_dt\n\
+    1000000,0.01,-0.02,0.03,4000,0,0.1,-0.1,-9.8,4000\n\
+    1004000,0.01,-0.02,0.03,4000,2147483647,0.1,-0.1,-9.8,4000\n\
+    1008000,0.01,-0.02,0.03,4000,0,0.1,-0.1,-9.8,4000\n\
+    1200000,0.01,-0.02,0.03,4000,0,0.1,-0.1,-9.8,4000\n";
+
+const PX4_MAG: &str = "timestamp,device_id,magnetometer_ga[0],magnetometer_ga[1],magnetometer_ga[2],calibration_count\n\
+    1004000,1,0.21,0.02,-0.48,1\n1004000,1,0.21,0.02,-0.48,1\n";
+
+#[test]
+fn px4_older_integer_gps_layout() {
+    let dir = temp_dir("px4-old");
+    write(&dir, "flight_sensor_combined_0.csv", PX4_IMU);
+    write(&dir, "flight_sensor_combined_1.csv", "timestamp\n");
+    write(&dir, "flight_vehicle_magnetometer_0.csv", PX4_MAG);
+    write(
+        &dir,
+        "flight_vehicle_gps_position_0.csv",
+        "timestamp,lat,lon,alt,alt_ellipsoid,s_variance_m_s,c_variance_rad,fix_type,eph,epv,hdop,vdop,vel_m_s,vel_n_m_s,vel_e_m_s,vel_d_m_s,cog_rad,vel_ned_valid,satellites_used\n\
+         1000000,473977418,85455939,488123,535000,0.4,0.1,2,5.0,8.0,1.2,1.5,0,0,0,0,0,1,6\n\
+         1200000,473977418,85455939,488123,535000,0.4,0.1,3,2.5,3.5,0.9,1.1,1.1,1.0,-0.4,0.2,0,1,9\n\
+         1400000,473977418,85455939,488123,535000,0.4,0.1,3,2.5,3.5,0.9,1.1,1.1,1.0,-0.4,0.2,0,0,9\n",
+    );
+    write(
+        &dir,
+        "flight_vehicle_attitude_0.csv",
+        "timestamp,q[0],q[1],q[2],q[3],delta_q_reset[0]\n1000000,1,0,0,0,0\n1004000,0,0,0,0,0\n",
+    );
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    assert_eq!(files.format, LogFormat::Px4);
+    assert_eq!(files.imu, dir.join("flight_sensor_combined_0.csv"));
+    let mut reader = LogReader::<f64>::open(&files, &ReaderOptions::default()).unwrap();
+    let events: Vec<_> = reader.by_ref().collect();
+    let order: Vec<_> = events.iter().map(|e| (e.time_us(), e.kind())).collect();
+    assert_eq!(
+        order,
+        [
+            (1_000_000, StreamKind::Imu),
+            (1_004_000, StreamKind::Mag),
+            (1_008_000, StreamKind::Imu),
+            (1_200_000, StreamKind::Imu),
+            (1_200_000, StreamKind::Gps),
+        ]
+    );
+    let SensorEvent::Gps(g) = events[4] else {
+        panic!()
+    };
+    let GpsPosition::Geodetic(p) = g.position else {
+        panic!()
+    };
+    assert_relative_eq!(p.lat_deg, 47.397_741_8, epsilon = 1e-12);
+    assert_relative_eq!(p.lon_deg, 8.545_593_9, epsilon = 1e-12);
+    assert_relative_eq!(p.alt_m, 488.123, epsilon = 1e-12);
+    assert_eq!(g.velocity_ned_m_s.as_slice(), &[1.0, -0.4, 0.2]);
+    assert_eq!(
+        (
+            g.horizontal_accuracy_m,
+            g.vertical_accuracy_m,
+            g.speed_accuracy_m_s
+        ),
+        (Some(2.5), Some(3.5), Some(0.4))
+    );
+    let SensorEvent::Mag(m) = events[1] else {
+        panic!()
+    };
+    assert_eq!(m.field_body.as_slice(), &[0.21, 0.02, -0.48]);
+
+    let skips = reader.skip_counts();
+    let gps = skips.file("flight_vehicle_gps_position_0.csv").unwrap();
+    assert_eq!(
+        (gps.skipped(SkipKind::NoFix), gps.skipped(SkipKind::Invalid)),
+        (1, 1)
+    );
+    let imu = skips.file("flight_sensor_combined_0.csv").unwrap();
+    assert_eq!((imu.accepted, imu.skipped(SkipKind::Invalid)), (3, 1));
+    assert_eq!(
+        skips
+            .file("flight_vehicle_magnetometer_0.csv")
+            .unwrap()
+            .skipped(SkipKind::Duplicate),
+        1
+    );
+
+    let mut reference = ReferenceReader::open(&files).unwrap().unwrap();
+    assert_eq!(reference.by_ref().count(), 1);
+    assert_eq!(reference.skip_counts().count(SkipKind::OutOfRange), 1);
+}
+
+#[test]
+fn px4_newer_degree_gps_layout() {
+    let dir = temp_dir("px4-new");
+    write(&dir, "log_0_sensor_combined_0.csv", PX4_IMU);
+    write(
+        &dir,
+        "log_0_sensor_gps_0.csv",
+        "timestamp,timestamp_sample,device_id,latitude_deg,longitude_deg,altitude_msl_m,altitude_ellipsoid_m,s_variance_m_s,fix_type,eph,epv,vel_n_m_s,vel_e_m_s,vel_d_m_s,vel_ned_valid\n\
+         1100000,1050000,7,47.3977418,8.5455939,488.123,535.0,0.35,3,1.8,2.9,-0.5,2.0,-0.1,1\n",
+    );
+    let files = LogFiles::locate(&[&dir], Some(LogFormat::Px4), &ReaderOptions::default()).unwrap();
+    assert_eq!(files.mag, None);
+    assert_eq!(files.reference, None);
+    let gps: Vec<_> = LogReader::<f32>::open(&files, &ReaderOptions::default())
+        .unwrap()
+        .filter_map(|e| {
+            if let SensorEvent::Gps(g) = e {
+                Some(g)
+            } else {
+                None
+            }
+        })
+        .collect();
+    assert_eq!(gps.len(), 1);
+    assert_eq!(gps[0].t_us, 1_100_000);
+    let GpsPosition::Geodetic(p) = gps[0].position else {
+        panic!()
+    };
+    assert_eq!(
+        (p.lat_deg, p.lon_deg, p.alt_m),
+        (47.3977418, 8.5455939, 488.123)
+    );
+    assert_eq!(gps[0].velocity_ned_m_s.as_slice(), &[-0.5f32, 2.0, -0.1]);
+    assert_eq!(gps[0].speed_accuracy_m_s, Some(0.35f32));
+}
