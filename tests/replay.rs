@@ -711,3 +711,158 @@ fn px4_newer_degree_gps_layout() {
     assert_eq!(gps[0].velocity_ned_m_s.as_slice(), &[-0.5f32, 2.0, -0.1]);
     assert_eq!(gps[0].speed_accuracy_m_s, Some(0.35f32));
 }
+
+// ---------------------------------------------------------------------------
+// The replay runner, with a navigator whose answers are known.
+
+/// Reports a fixed attitude and velocity at every IMU time, refuses every
+/// `refuse_every`-th IMU sample, and reports a delay that grows by 1 ms per
+/// IMU sample.
+struct KnownNav {
+    t_us: Option<u64>,
+    imu_seen: u64,
+    refuse_every: u64,
+    attitude: nalgebra::UnitQuaternion<f64>,
+}
+
+impl delaynav::Navigator<f64> for KnownNav {
+    fn push_imu<I: delaynav::ImuSample<f64> + ?Sized>(
+        &mut self,
+        imu: &I,
+    ) -> Result<(), delaynav::Error> {
+        self.imu_seen += 1;
+        if self.imu_seen % self.refuse_every == 0 {
+            return Err(delaynav::Error::StepTooLong {
+                dt_us: 1,
+                max_us: 0,
+            });
+        }
+        self.t_us = Some(imu.time_us());
+        Ok(())
+    }
+    fn push_gps<G: delaynav::GpsFix<f64> + ?Sized>(
+        &mut self,
+        _: &G,
+    ) -> Result<delaynav::GpsOutcome<f64>, delaynav::Error> {
+        Ok(delaynav::GpsOutcome::Queued)
+    }
+    fn push_mag<M: delaynav::MagSample<f64> + ?Sized>(
+        &mut self,
+        _: &M,
+    ) -> Result<delaynav::MagOutcome<f64>, delaynav::Error> {
+        Ok(delaynav::MagOutcome::Queued)
+    }
+    fn estimate(&self) -> Option<delaynav::Estimate<f64>> {
+        Some(delaynav::Estimate {
+            t_us: self.t_us?,
+            attitude: self.attitude,
+            position_ned_m: nalgebra::Vector3::zeros(),
+            velocity_ned_m_s: nalgebra::Vector3::new(1.0, 0.0, 0.0),
+            accel_bias_m_s2: nalgebra::Vector3::zeros(),
+            gyro_bias_rad_s: nalgebra::Vector3::zeros(),
+            covariance_diagonal: nalgebra::SVector::zeros(),
+            delay_s: Some(self.imu_seen as f64 * 1e-3),
+            delay_std_s: None,
+        })
+    }
+}
+
+#[test]
+fn runner_scores_a_known_offset_and_counts_refusals() {
+    use delaynav::replay::{ReferenceAlignment, ReferenceSample, RunOptions, replay};
+    let imu = |t_us| {
+        SensorEvent::Imu(delaynav::Imu {
+            t_us,
+            gyro_rad_s: nalgebra::Vector3::zeros(),
+            accel_m_s2: nalgebra::Vector3::zeros(),
+        })
+    };
+    let events: Vec<SensorEvent<f64>> = (0..100).map(|k| imu(k * 10_000)).collect();
+    // Reference: 2 deg more roll, 1 deg less pitch, 3 deg more yaw, 0.5 m/s slower north.
+    let truth = quaternion_from_euler(0.1, 0.05, 1.0);
+    let reported = quaternion_from_euler(
+        0.1 + 2f64.to_radians(),
+        0.05 - 1f64.to_radians(),
+        1.0 + 3f64.to_radians(),
+    );
+    let reference: Vec<ReferenceSample> = (0..20)
+        .map(|k| ReferenceSample {
+            t_us: 5_000 + k * 50_000,
+            attitude: reported,
+            velocity_ned_m_s: Some(nalgebra::Vector3::new(0.5, 0.0, 0.0)),
+            position_ned_m: None,
+        })
+        .collect();
+    let mut nav = KnownNav {
+        t_us: None,
+        imu_seen: 0,
+        refuse_every: 10,
+        attitude: truth,
+    };
+    let options = RunOptions {
+        start_us: Some(100_000),
+        score_from_us: Some(200_000),
+        end_us: Some(900_000),
+        alignment: ReferenceAlignment::default(),
+        ..RunOptions::default()
+    };
+    let mut estimates = 0;
+    let summary = replay(
+        &mut nav,
+        events,
+        Some(reference.into_iter()),
+        &options,
+        |_| estimates += 1,
+    );
+    // IMU 100 000..=900 000 us: 81 samples, every 10th refused.
+    assert_eq!(summary.imu_pushed + summary.samples_refused(), 81);
+    assert_eq!(summary.refused.get("StepTooLong"), Some(&8));
+    assert_eq!(estimates, 81);
+    let rms = summary.reference_rms.unwrap();
+    // Reference at 205 000 .. 855 000 us step 50 000: 14 scored.
+    assert_eq!(rms.samples, 14);
+    assert_relative_eq!(rms.roll_deg, 2.0, epsilon = 1e-9);
+    assert_relative_eq!(rms.pitch_deg, 1.0, epsilon = 1e-9);
+    assert_relative_eq!(rms.yaw_deg, 3.0, epsilon = 1e-9);
+    assert_relative_eq!(rms.velocity_m_s.unwrap(), 0.5, epsilon = 1e-12);
+    // 105 000 .. 155 000 us are in the window but before scoring starts.
+    assert_eq!(summary.reference_unscored, 2);
+    assert_eq!(summary.non_finite_estimates, 0);
+    // The delay grows 1 ms per IMU sample pushed: 81 pushed.
+    assert_relative_eq!(summary.final_delay_s.unwrap(), 0.081, epsilon = 1e-12);
+    assert_eq!(summary.delay_track.len(), 1);
+
+    // The alignment of log171 is applied to the estimate: an estimate equal
+    // to the reference rotated into the IMU frame scores zero.
+    let a = ardupilot::LOG171_ALIGNMENT;
+    let imu_frame = quaternion_from_euler(0.0, 0.0, -a.declination_rad) * reported * a.trim();
+    let mut nav = KnownNav {
+        t_us: None,
+        imu_seen: 0,
+        refuse_every: u64::MAX,
+        attitude: imu_frame,
+    };
+    let reference = (0..5).map(|k| ReferenceSample {
+        t_us: 5_000 + k * 20_000,
+        attitude: reported,
+        velocity_ned_m_s: None,
+        position_ned_m: None,
+    });
+    let options = RunOptions {
+        alignment: a,
+        ..RunOptions::default()
+    };
+    let summary = replay(
+        &mut nav,
+        (0..10).map(|k| imu(k * 10_000)),
+        Some(reference),
+        &options,
+        |_| {},
+    );
+    let rms = summary.reference_rms.unwrap();
+    assert_eq!((rms.samples, rms.velocity_m_s), (5, None));
+    assert!(
+        rms.roll_deg < 1e-9 && rms.pitch_deg < 1e-9 && rms.yaw_deg < 1e-9,
+        "{rms:?}"
+    );
+}

@@ -39,8 +39,10 @@ pub mod ardupilot;
 pub mod crate_csv;
 pub mod estimates_csv;
 pub mod px4;
+pub mod run;
 
 pub use estimates_csv::EstimateWriter;
+pub use run::{ReferenceRms, RunOptions, RunSummary, replay};
 
 use crate::error::Error;
 use crate::geo::quaternion_from_euler;

@@ -1,0 +1,289 @@
+//! Driving any [`Navigator`] through a log and scoring it against the log's
+//! reference.
+//!
+//! [`replay`] pushes every event of a time window into the estimator,
+//! counts what it refuses (by error kind) and any non-finite estimate, keeps
+//! the delay estimate over time, and compares each reference sample with the
+//! estimate at the same instant: the estimate is interpolated between the
+//! two estimates around the reference time (attitude by slerp, velocity
+//! linearly), aligned with [`ReferenceAlignment::align_estimate`], and the
+//! differences are accumulated as root mean squares:
+//!
+//! - roll, pitch, yaw: the ZYX Euler angles of both attitudes, the
+//!   difference wrapped to `(-180, 180]` deg;
+//! - velocity: the norm of the 3-D NED velocity difference, m/s.
+//!
+//! Reference samples before the estimator's first estimate or before the
+//! start of scoring are not scored, and counted.
+
+use super::{ReferenceAlignment, ReferenceSample, SensorEvent};
+use crate::error::Error;
+use crate::estimate::{Estimate, Navigator};
+use crate::geo::{euler_from_quaternion, wrap_pi};
+use crate::scalar::Scalar;
+use nalgebra::{UnitQuaternion, Vector3};
+use std::collections::BTreeMap;
+use std::iter::Peekable;
+
+/// What part of a log to replay and to score.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunOptions {
+    /// First event time replayed, microseconds (`None`: the log's start).
+    pub start_us: Option<u64>,
+    /// First reference time scored, microseconds (`None`: from the start).
+    /// Letting the estimator run before scoring keeps its convergence out
+    /// of the RMS.
+    pub score_from_us: Option<u64>,
+    /// Last event time replayed and scored, microseconds (`None`: to the end).
+    pub end_us: Option<u64>,
+    /// How the reference differs from the estimate's frame.
+    pub alignment: ReferenceAlignment,
+    /// Declination the estimator's magnetic model used, radians.
+    pub estimator_declination_rad: f64,
+    /// Interval of the delay track, microseconds.
+    pub delay_track_interval_us: u64,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            start_us: None,
+            score_from_us: None,
+            end_us: None,
+            alignment: ReferenceAlignment::default(),
+            estimator_declination_rad: 0.0,
+            delay_track_interval_us: 1_000_000,
+        }
+    }
+}
+
+/// RMS differences from the reference.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReferenceRms {
+    /// Reference samples scored.
+    pub samples: u64,
+    /// Roll, degrees.
+    pub roll_deg: f64,
+    /// Pitch, degrees.
+    pub pitch_deg: f64,
+    /// Yaw, degrees.
+    pub yaw_deg: f64,
+    /// Norm of the NED velocity difference, m/s (`None` when the reference
+    /// has no velocity).
+    pub velocity_m_s: Option<f64>,
+}
+
+/// The outcome of one replay.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RunSummary {
+    /// IMU samples pushed.
+    pub imu_pushed: u64,
+    /// GPS fixes pushed.
+    pub gps_pushed: u64,
+    /// Magnetometer samples pushed.
+    pub mag_pushed: u64,
+    /// Samples the estimator refused, by error kind (e.g. `"StepTooLong"`).
+    pub refused: BTreeMap<String, u64>,
+    /// Estimates holding a NaN or infinity.
+    pub non_finite_estimates: u64,
+    /// `(time s, delay s)` every `delay_track_interval_us`, for estimators
+    /// with a delay estimate.
+    pub delay_track: Vec<(f64, f64)>,
+    /// The last delay estimate, seconds.
+    pub final_delay_s: Option<f64>,
+    /// The last estimate.
+    pub last_estimate_t_us: Option<u64>,
+    /// Differences from the reference, when the log has one.
+    pub reference_rms: Option<ReferenceRms>,
+    /// Reference samples in the window that were not scored (before the
+    /// first estimate or before `score_from_us`).
+    pub reference_unscored: u64,
+}
+
+impl RunSummary {
+    /// Samples refused, all kinds together.
+    pub fn samples_refused(&self) -> u64 {
+        self.refused.values().sum()
+    }
+}
+
+/// The name of an error's variant, for the refusal counts.
+pub fn error_kind(e: &Error) -> String {
+    let text = format!("{e:?}");
+    text.split([' ', '{', '('])
+        .next()
+        .unwrap_or_default()
+        .to_string()
+}
+
+/// Running sums of squared differences.
+#[derive(Default)]
+struct Squares {
+    n: u64,
+    roll: f64,
+    pitch: f64,
+    yaw: f64,
+    velocity: f64,
+    velocity_n: u64,
+}
+
+impl Squares {
+    fn rms(&self) -> Option<ReferenceRms> {
+        let mean = |s: f64, n: u64| (s / n as f64).sqrt();
+        (self.n > 0).then(|| ReferenceRms {
+            samples: self.n,
+            roll_deg: mean(self.roll, self.n).to_degrees(),
+            pitch_deg: mean(self.pitch, self.n).to_degrees(),
+            yaw_deg: mean(self.yaw, self.n).to_degrees(),
+            velocity_m_s: (self.velocity_n > 0).then(|| mean(self.velocity, self.velocity_n)),
+        })
+    }
+}
+
+/// An estimate narrowed to what the comparison needs, in `f64`.
+#[derive(Clone, Copy)]
+struct Snapshot {
+    t_us: u64,
+    attitude: UnitQuaternion<f64>,
+    velocity: Vector3<f64>,
+}
+
+impl Snapshot {
+    fn of<T: Scalar>(e: &Estimate<T>) -> Self {
+        let q = e.attitude.quaternion();
+        Self {
+            t_us: e.t_us,
+            attitude: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                q.w.as_f64(),
+                q.i.as_f64(),
+                q.j.as_f64(),
+                q.k.as_f64(),
+            )),
+            velocity: e.velocity_ned_m_s.map(Scalar::as_f64),
+        }
+    }
+
+    /// The snapshot at `t_us` between `self` and `next`.
+    fn interpolate(&self, next: &Snapshot, t_us: u64) -> Snapshot {
+        let span = next.t_us.saturating_sub(self.t_us);
+        let w = if span == 0 {
+            1.0
+        } else {
+            (t_us - self.t_us) as f64 / span as f64
+        };
+        Snapshot {
+            t_us,
+            attitude: self
+                .attitude
+                .try_slerp(&next.attitude, w, 1e-9)
+                .unwrap_or(next.attitude),
+            velocity: self.velocity.lerp(&next.velocity, w),
+        }
+    }
+}
+
+fn is_finite<T: Scalar>(e: &Estimate<T>) -> bool {
+    let q = e.attitude.quaternion();
+    [q.w, q.i, q.j, q.k].iter().all(|v| v.is_finite())
+        && e.position_ned_m.iter().all(|v| v.is_finite())
+        && e.velocity_ned_m_s.iter().all(|v| v.is_finite())
+        && e.delay_s.is_none_or(|d| d.is_finite())
+}
+
+/// Replays `events` through `nav`, scores it against `reference`, and
+/// calls `on_estimate` with the estimate after every IMU sample.
+pub fn replay<T, N, E, R, F>(
+    nav: &mut N,
+    events: E,
+    reference: Option<R>,
+    options: &RunOptions,
+    mut on_estimate: F,
+) -> RunSummary
+where
+    T: Scalar,
+    N: Navigator<T>,
+    E: IntoIterator<Item = SensorEvent<T>>,
+    R: Iterator<Item = ReferenceSample>,
+    F: FnMut(&Estimate<T>),
+{
+    let mut summary = RunSummary::default();
+    let mut squares = Squares::default();
+    let mut reference: Option<Peekable<R>> = reference.map(Iterator::peekable);
+    let mut previous: Option<Snapshot> = None;
+    let mut next_track_us = 0;
+    let start = options.start_us.unwrap_or(0);
+    let end = options.end_us.unwrap_or(u64::MAX);
+    let score_from = options.score_from_us.unwrap_or(start).max(start);
+
+    for event in events.into_iter().skip_while(|e| e.time_us() < start) {
+        if event.time_us() > end {
+            break;
+        }
+        let outcome = match &event {
+            SensorEvent::Imu(s) => nav.push_imu(s).map(|_| summary.imu_pushed += 1),
+            SensorEvent::Gps(s) => nav.push_gps(s).map(|_| summary.gps_pushed += 1),
+            SensorEvent::Mag(s) => nav.push_mag(s).map(|_| summary.mag_pushed += 1),
+        };
+        if let Err(e) = outcome {
+            *summary.refused.entry(error_kind(&e)).or_default() += 1;
+        }
+        if !matches!(event, SensorEvent::Imu(_)) {
+            continue;
+        }
+        let Some(estimate) = nav.estimate() else {
+            continue;
+        };
+        if !is_finite(&estimate) {
+            summary.non_finite_estimates += 1;
+            continue;
+        }
+        on_estimate(&estimate);
+        summary.last_estimate_t_us = Some(estimate.t_us);
+        if let Some(d) = estimate.delay_s {
+            summary.final_delay_s = Some(d.as_f64());
+            if estimate.t_us >= next_track_us {
+                summary
+                    .delay_track
+                    .push((estimate.t_us as f64 * 1e-6, d.as_f64()));
+                next_track_us = estimate.t_us + options.delay_track_interval_us;
+            }
+        }
+        let current = Snapshot::of(&estimate);
+        if let Some(refs) = reference.as_mut() {
+            while let Some(r) = refs.next_if(|r| r.t_us <= current.t_us) {
+                match previous {
+                    Some(p) if r.t_us >= p.t_us && r.t_us >= score_from && r.t_us >= start => {
+                        let at = p.interpolate(&current, r.t_us);
+                        score(&mut squares, &at, &r, options);
+                    }
+                    _ if r.t_us >= start => summary.reference_unscored += 1,
+                    _ => {}
+                }
+            }
+        }
+        previous = Some(current);
+    }
+    summary.reference_rms = squares.rms();
+    summary
+}
+
+fn score(
+    squares: &mut Squares,
+    estimate: &Snapshot,
+    reference: &ReferenceSample,
+    options: &RunOptions,
+) {
+    let aligned = options
+        .alignment
+        .align_estimate(&estimate.attitude, options.estimator_declination_rad);
+    let e = euler_from_quaternion(aligned.quaternion());
+    let r = euler_from_quaternion(reference.attitude.quaternion());
+    squares.n += 1;
+    squares.roll += wrap_pi(e.x - r.x).powi(2);
+    squares.pitch += wrap_pi(e.y - r.y).powi(2);
+    squares.yaw += wrap_pi(e.z - r.z).powi(2);
+    if let Some(v) = reference.velocity_ned_m_s {
+        squares.velocity += (estimate.velocity - v).norm_squared();
+        squares.velocity_n += 1;
+    }
+}
