@@ -731,7 +731,7 @@ impl delaynav::Navigator<f64> for KnownNav {
         imu: &I,
     ) -> Result<(), delaynav::Error> {
         self.imu_seen += 1;
-        if self.imu_seen % self.refuse_every == 0 {
+        if self.imu_seen.is_multiple_of(self.refuse_every) {
             return Err(delaynav::Error::StepTooLong {
                 dt_us: 1,
                 max_us: 0,
