@@ -866,3 +866,40 @@ fn runner_scores_a_known_offset_and_counts_refusals() {
         "{rms:?}"
     );
 }
+
+#[test]
+fn ardupilot_inclination_at_rest_is_canberras() {
+    // Canberra's field points about 66 deg above the horizon (southern
+    // hemisphere: negative inclination, World Magnetic Model).
+    let Some(dir) = log171() else { return };
+    let reader = LogReader::<f64>::open_paths(&[dir], None, &ReaderOptions::default()).unwrap();
+    let inclination = delaynav::replay::inclination_at_rest(reader, 10_000_000)
+        .unwrap()
+        .to_degrees();
+    assert!(
+        (-72.0..-60.0).contains(&inclination),
+        "inclination {inclination} deg"
+    );
+}
+
+#[test]
+fn inclination_at_rest_of_a_known_field() {
+    // Level at rest: f = [0, 0, -g]; field 30 deg below the horizon, heading 40 deg.
+    let (i, h) = (30f64.to_radians(), 40f64.to_radians());
+    let field = nalgebra::Vector3::new(i.cos() * h.cos(), -i.cos() * h.sin(), i.sin()) * 0.5;
+    let events = (0..20u64).flat_map(|k| {
+        [
+            SensorEvent::Imu(delaynav::Imu {
+                t_us: k * 10_000,
+                gyro_rad_s: nalgebra::Vector3::zeros(),
+                accel_m_s2: nalgebra::Vector3::new(0.0, 0.0, -9.81),
+            }),
+            SensorEvent::Mag(delaynav::Mag {
+                t_us: k * 10_000 + 1,
+                field_body: field,
+            }),
+        ]
+    });
+    let got = delaynav::replay::inclination_at_rest::<f64>(events, 1_000_000).unwrap();
+    assert_relative_eq!(got, i, epsilon = 1e-12);
+}

@@ -42,7 +42,7 @@ pub mod px4;
 pub mod run;
 
 pub use estimates_csv::EstimateWriter;
-pub use run::{ReferenceRms, RunOptions, RunSummary, replay};
+pub use run::{ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
 
 use crate::error::Error;
 use crate::geo::quaternion_from_euler;

@@ -287,3 +287,43 @@ fn score(
         squares.velocity_n += 1;
     }
 }
+
+/// The magnetic inclination (radians, positive when the field points below
+/// the horizon) seen at the start of a log, while the vehicle stands still:
+/// with `f̄` the mean specific force and `m̄` the mean magnetometer direction
+/// over the first `window_us` after the first sample, down is `-f̄/|f̄|` in
+/// the body frame and `I = asin(m̄/|m̄| · (-f̄/|f̄|))`.
+///
+/// `None` when the window holds no IMU or no magnetometer sample. Meaningful
+/// only when the vehicle is at rest in that window (logs usually start on
+/// the ground); the estimators only need it for their magnetic model.
+pub fn inclination_at_rest<T: Scalar>(
+    events: impl IntoIterator<Item = SensorEvent<T>>,
+    window_us: u64,
+) -> Option<f64> {
+    let mut first_us = None;
+    let (mut force, mut field) = (Vector3::<f64>::zeros(), Vector3::<f64>::zeros());
+    let (mut n_imu, mut n_mag) = (0u32, 0u32);
+    for event in events {
+        let start = *first_us.get_or_insert(event.time_us());
+        if event.time_us() > start + window_us {
+            break;
+        }
+        match event {
+            SensorEvent::Imu(s) => {
+                force += s.accel_m_s2.map(Scalar::as_f64);
+                n_imu += 1;
+            }
+            SensorEvent::Mag(s) => {
+                field += s.field_body.map(Scalar::as_f64).normalize();
+                n_mag += 1;
+            }
+            SensorEvent::Gps(_) => {}
+        }
+    }
+    if n_imu == 0 || n_mag == 0 || force.norm() == 0.0 || field.norm() == 0.0 {
+        return None;
+    }
+    let down = -force.normalize();
+    Some(field.normalize().dot(&down).clamp(-1.0, 1.0).asin())
+}
