@@ -876,6 +876,7 @@ fn ardupilot_inclination_at_rest_is_canberras() {
     let inclination = delaynav::replay::inclination_at_rest(reader, 10_000_000)
         .unwrap()
         .to_degrees();
+    println!("log171 inclination at rest: {inclination:.2} deg");
     assert!(
         (-72.0..-60.0).contains(&inclination),
         "inclination {inclination} deg"
