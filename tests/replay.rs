@@ -742,9 +742,20 @@ impl delaynav::Navigator<f64> for KnownNav {
     }
     fn push_gps<G: delaynav::GpsFix<f64> + ?Sized>(
         &mut self,
-        _: &G,
+        gps: &G,
     ) -> Result<delaynav::GpsOutcome<f64>, delaynav::Error> {
-        Ok(delaynav::GpsOutcome::Queued)
+        // Position fused, velocity rejected by the gate.
+        let record = |fused| delaynav::FusionRecord {
+            t_us: gps.time_us(),
+            innovation: nalgebra::Vector3::zeros(),
+            innovation_variance: nalgebra::Vector3::zeros(),
+            test_ratio: 0.0,
+            fused,
+        };
+        Ok(delaynav::GpsOutcome::Fused {
+            position: record(true),
+            velocity: record(false),
+        })
     }
     fn push_mag<M: delaynav::MagSample<f64> + ?Sized>(
         &mut self,
@@ -777,7 +788,19 @@ fn runner_scores_a_known_offset_and_counts_refusals() {
             accel_m_s2: nalgebra::Vector3::zeros(),
         })
     };
-    let events: Vec<SensorEvent<f64>> = (0..100).map(|k| imu(k * 10_000)).collect();
+    let mut events: Vec<SensorEvent<f64>> = (0..100).map(|k| imu(k * 10_000)).collect();
+    // Three fixes inside the window, one before it.
+    for t_us in [50_000, 300_000, 400_000, 500_000] {
+        events.push(SensorEvent::Gps(delaynav::Gps {
+            t_us,
+            position: GpsPosition::Ned(nalgebra::Vector3::zeros()),
+            velocity_ned_m_s: nalgebra::Vector3::zeros(),
+            horizontal_accuracy_m: None,
+            vertical_accuracy_m: None,
+            speed_accuracy_m_s: None,
+        }));
+    }
+    events.sort_by_key(|e| (e.time_us(), e.kind()));
     // Reference: 2 deg more roll, 1 deg less pitch, 3 deg more yaw, 0.5 m/s slower north.
     let truth = quaternion_from_euler(0.1, 0.05, 1.0);
     let reported = quaternion_from_euler(
@@ -818,6 +841,15 @@ fn runner_scores_a_known_offset_and_counts_refusals() {
     assert_eq!(summary.imu_pushed + summary.samples_refused(), 81);
     assert_eq!(summary.refused.get("StepTooLong"), Some(&8));
     assert_eq!(estimates, 81);
+    assert_eq!(
+        (
+            summary.gps_pushed,
+            summary.gps_position_fused,
+            summary.gps_velocity_fused,
+            summary.gps_gated
+        ),
+        (3, 3, 0, 3)
+    );
     let rms = summary.reference_rms.unwrap();
     // Reference at 205 000 .. 855 000 us step 50 000: 14 scored.
     assert_eq!(rms.samples, 14);

@@ -18,7 +18,7 @@
 
 use super::{ReferenceAlignment, ReferenceSample, SensorEvent};
 use crate::error::Error;
-use crate::estimate::{Estimate, Navigator};
+use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{euler_from_quaternion, wrap_pi};
 use crate::scalar::Scalar;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -82,6 +82,16 @@ pub struct RunSummary {
     pub gps_pushed: u64,
     /// Magnetometer samples pushed.
     pub mag_pushed: u64,
+    /// GPS fixes whose position block was fused (not rejected by the gate).
+    pub gps_position_fused: u64,
+    /// GPS fixes whose velocity block was fused.
+    pub gps_velocity_fused: u64,
+    /// GPS fixes fused with at least one block rejected by the gate.
+    pub gps_gated: u64,
+    /// Magnetometer samples fused.
+    pub mag_fused: u64,
+    /// Magnetometer samples rejected by the gate.
+    pub mag_gated: u64,
     /// Samples the estimator refused, by error kind (e.g. `"StepTooLong"`).
     pub refused: BTreeMap<String, u64>,
     /// Estimates holding a NaN or infinity.
@@ -104,6 +114,23 @@ impl RunSummary {
     /// Samples refused, all kinds together.
     pub fn samples_refused(&self) -> u64 {
         self.refused.values().sum()
+    }
+
+    fn count_gps<T: Scalar>(&mut self, outcome: &GpsOutcome<T>) {
+        self.gps_pushed += 1;
+        if let GpsOutcome::Fused { position, velocity } = outcome {
+            self.gps_position_fused += u64::from(position.fused);
+            self.gps_velocity_fused += u64::from(velocity.fused);
+            self.gps_gated += u64::from(!(position.fused && velocity.fused));
+        }
+    }
+
+    fn count_mag<T: Scalar>(&mut self, outcome: &MagOutcome<T>) {
+        self.mag_pushed += 1;
+        if let MagOutcome::Fused(record) = outcome {
+            self.mag_fused += u64::from(record.fused);
+            self.mag_gated += u64::from(!record.fused);
+        }
     }
 }
 
@@ -220,9 +247,9 @@ where
             break;
         }
         let outcome = match &event {
-            SensorEvent::Imu(s) => nav.push_imu(s).map(|_| summary.imu_pushed += 1),
-            SensorEvent::Gps(s) => nav.push_gps(s).map(|_| summary.gps_pushed += 1),
-            SensorEvent::Mag(s) => nav.push_mag(s).map(|_| summary.mag_pushed += 1),
+            SensorEvent::Imu(s) => nav.push_imu(s).map(|()| summary.imu_pushed += 1),
+            SensorEvent::Gps(s) => nav.push_gps(s).map(|o| summary.count_gps(&o)),
+            SensorEvent::Mag(s) => nav.push_mag(s).map(|o| summary.count_mag(&o)),
         };
         if let Err(e) = outcome {
             *summary.refused.entry(error_kind(&e)).or_default() += 1;
