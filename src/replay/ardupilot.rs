@@ -21,11 +21,12 @@
 //! the trim with [`alignment_from_params`]; log171's values are
 //! [`LOG171_ALIGNMENT`].
 
+use super::columns::{Clock, ImuLayout, MagLayout, RowFlag, TimeUnit, imu_stream, mag_stream};
 use super::table::{CsvTable, RowParser, RowStream, number, seconds_as_us, vector3};
 use super::{
     ArduPilotImu, ArduPilotReference, GpsRow, GpsRowPosition, LogFiles, LogFormat, ReaderOptions,
-    ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SkipCounts, SkipKind,
-    StreamKind, imu_event, mag_event, named, require,
+    ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SensorStreams, SkipCounts,
+    SkipKind, named, require,
 };
 use crate::geo::quaternion_from_euler;
 use crate::scalar::Scalar;
@@ -84,50 +85,39 @@ pub(crate) fn locate(
     })
 }
 
-type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
+/// ArduPilot's clock: seconds in `t_s`.
+const CLOCK: Clock = Clock {
+    column: TIME_COLUMN,
+    unit: TimeUnit::Seconds,
+};
 
-pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
-    let mut streams = vec![
-        (StreamKind::Imu, imu_stream(&files.imu)?),
-        (
-            StreamKind::Gps,
-            gps_stream(&files.gps, files.gps_accuracy.as_deref())?,
-        ),
-    ];
-    if let Some(mag) = &files.mag {
-        streams.push((StreamKind::Mag, mag_stream(mag)?));
-    }
-    Ok(streams)
-}
-
-struct ImuColumns {
-    t: usize,
-    gyro: [usize; 3],
-    accel: [usize; 3],
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        imu_event(
-            seconds_as_us(rec, self.t)?,
-            vector3(rec, self.gyro)?,
-            vector3(rec, self.accel)?,
-        )
-    }
-}
-
-fn imu_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = ImuColumns {
-        t: table.column(TIME_COLUMN)?,
-        gyro: table.columns3(["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"])?,
-        accel: table.columns3(["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"])?,
+pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
+    let imu = ImuLayout {
+        clock: CLOCK,
+        gyro: ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"],
+        accel: ["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"],
     };
-    Ok(RowStream::new(table, Box::new(parser), "imu"))
+    let mag = MagLayout {
+        clock: CLOCK,
+        field: ["mag_x_mGauss", "mag_y_mGauss", "mag_z_mGauss"],
+        scale: 1.0 / MILLIGAUSS_PER_GAUSS,
+    };
+    let unhealthy = |table: &CsvTable| {
+        vec![RowFlag {
+            column: table.find("health"),
+            rejects: |health| health == 0.0,
+            kind: SkipKind::Invalid,
+        }]
+    };
+    Ok(SensorStreams {
+        imu: imu_stream(&files.imu, &imu, |_| Vec::new())?,
+        gps: gps_stream(&files.gps, files.gps_accuracy.as_deref())?,
+        mag: files
+            .mag
+            .as_deref()
+            .map(|p| mag_stream(p, &mag, unhealthy))
+            .transpose()?,
+    })
 }
 
 /// Where the NED velocity comes from.
@@ -248,7 +238,7 @@ impl AccuracyJoin {
 
 struct GpsColumns {
     t: usize,
-    fix: usize,
+    fix: RowFlag,
     position: [usize; 3],
     velocity: VelocityColumns,
     accuracy: Option<AccuracyJoin>,
@@ -261,9 +251,7 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
         skips: &mut SkipCounts,
     ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = seconds_as_us(rec, self.t)?;
-        if number(rec, self.fix)? < MIN_FIX_STATUS {
-            return Err(SkipKind::NoFix);
-        }
+        self.fix.check(rec)?;
         let [lat, lon, alt] = self.position;
         let position = GpsRowPosition::Geodetic(Geodetic {
             lat_deg: number(rec, lat)?,
@@ -299,44 +287,16 @@ fn gps_stream<T: Scalar>(
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,
-        fix: table.column("fix_status")?,
+        fix: RowFlag {
+            column: Some(table.column("fix_status")?),
+            rejects: |status| status < MIN_FIX_STATUS,
+            kind: SkipKind::NoFix,
+        },
         position: table.columns3(["lat_deg", "lon_deg", "alt_msl_m"])?,
         velocity,
         accuracy: accuracy.map(AccuracyJoin::open).transpose()?,
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
-}
-
-struct MagColumns {
-    t: usize,
-    field: [usize; 3],
-    health: Option<usize>,
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        let t_us = seconds_as_us(rec, self.t)?;
-        if let Some(h) = self.health
-            && number(rec, h)? == 0.0
-        {
-            return Err(SkipKind::Invalid);
-        }
-        mag_event(t_us, vector3(rec, self.field)? / MILLIGAUSS_PER_GAUSS)
-    }
-}
-
-fn mag_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = MagColumns {
-        t: table.column(TIME_COLUMN)?,
-        field: table.columns3(["mag_x_mGauss", "mag_y_mGauss", "mag_z_mGauss"])?,
-        health: table.find("health"),
-    };
-    Ok(RowStream::new(table, Box::new(parser), "mag"))
 }
 
 struct ReferenceColumns {

@@ -10,12 +10,13 @@
 //! counted as [`NoFix`](super::SkipKind::NoFix). `truth.csv` is read as the
 //! reference: attitude from `q0..q3`, velocity and position NED.
 
+use super::columns::{Clock, ImuLayout, MagLayout, TimeUnit, imu_stream, mag_stream};
 use super::table::{
     CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
 };
 use super::{
     GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
-    SkipCounts, SkipKind, StreamKind, imu_event, mag_event, named, require,
+    SensorStreams, SkipCounts, SkipKind, named, require,
 };
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
@@ -37,48 +38,32 @@ pub(crate) fn locate(files: &[PathBuf], searched: &str) -> Result<LogFiles, Repl
     })
 }
 
-type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
+/// The crate format's clock: integer microseconds in `t_us`.
+const CLOCK: Clock = Clock {
+    column: TIME_COLUMN,
+    unit: TimeUnit::Microseconds,
+};
 
-pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
-    let mut streams = vec![
-        (StreamKind::Imu, imu_stream(&files.imu)?),
-        (StreamKind::Gps, gps_stream(&files.gps)?),
-    ];
-    if let Some(mag) = &files.mag {
-        streams.push((StreamKind::Mag, mag_stream(mag)?));
-    }
-    Ok(streams)
-}
-
-struct ImuColumns {
-    t: usize,
-    gyro: [usize; 3],
-    accel: [usize; 3],
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        imu_event(
-            microseconds(rec, self.t)?,
-            vector3(rec, self.gyro)?,
-            vector3(rec, self.accel)?,
-        )
-    }
-}
-
-/// The stream of an `imu.csv` of the crate's format.
-pub(crate) fn imu_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = ImuColumns {
-        t: table.column(TIME_COLUMN)?,
-        gyro: table.columns3(["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"])?,
-        accel: table.columns3(["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"])?,
+pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
+    let imu = ImuLayout {
+        clock: CLOCK,
+        gyro: ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"],
+        accel: ["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"],
     };
-    Ok(RowStream::new(table, Box::new(parser), "imu"))
+    let mag = MagLayout {
+        clock: CLOCK,
+        field: ["mag_x", "mag_y", "mag_z"],
+        scale: 1.0,
+    };
+    Ok(SensorStreams {
+        imu: imu_stream(&files.imu, &imu, |_| Vec::new())?,
+        gps: gps_stream(&files.gps)?,
+        mag: files
+            .mag
+            .as_deref()
+            .map(|p| mag_stream(p, &mag, |_| Vec::new()))
+            .transpose()?,
+    })
 }
 
 enum PositionColumns {
@@ -122,7 +107,7 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
 }
 
 /// The stream of a `gps.csv` of the crate's format.
-pub(crate) fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
     let table = CsvTable::open(path)?;
     let position = match table.columns3(["lat_deg", "lon_deg", "alt_m"]) {
         Ok(idx) => PositionColumns::Geodetic(idx),
@@ -145,31 +130,6 @@ pub(crate) fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent
         s_acc: table.find("s_acc_m_s"),
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
-}
-
-struct MagColumns {
-    t: usize,
-    field: [usize; 3],
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        mag_event(microseconds(rec, self.t)?, vector3(rec, self.field)?)
-    }
-}
-
-/// The stream of a `mag.csv` of the crate's format.
-pub(crate) fn mag_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = MagColumns {
-        t: table.column(TIME_COLUMN)?,
-        field: table.columns3(["mag_x", "mag_y", "mag_z"])?,
-    };
-    Ok(RowStream::new(table, Box::new(parser), "mag"))
 }
 
 struct TruthColumns {

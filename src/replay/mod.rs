@@ -33,6 +33,7 @@
 //! [`ReferenceAlignment`] holds the mounting trim and declination needed to
 //! compare like with like.
 
+mod columns;
 mod table;
 
 pub mod ardupilot;
@@ -523,6 +524,13 @@ pub(crate) fn require(
         })
 }
 
+/// The per-file streams of one log.
+pub(crate) struct SensorStreams<T: Scalar> {
+    pub(crate) imu: RowStream<SensorEvent<T>>,
+    pub(crate) gps: RowStream<SensorEvent<T>>,
+    pub(crate) mag: Option<RowStream<SensorEvent<T>>>,
+}
+
 /// One file's stream inside the merge, with the sample at its head.
 struct MergeInput<T: Scalar> {
     stream: RowStream<SensorEvent<T>>,
@@ -558,19 +566,18 @@ impl<T: Scalar> LogReader<T> {
             LogFormat::ArduPilot => ardupilot::open_streams(files)?,
             LogFormat::Px4 => px4::open_streams(files)?,
         };
+        let input = |stream, shift_us| MergeInput {
+            stream,
+            head: None,
+            shift_us,
+        };
+        let mut inputs = vec![
+            input(streams.imu, 0),
+            input(streams.gps, options.gps_delay_added_us),
+        ];
+        inputs.extend(streams.mag.map(|m| input(m, 0)));
         let mut reader = Self {
-            inputs: streams
-                .into_iter()
-                .map(|(kind, stream)| MergeInput {
-                    stream,
-                    head: None,
-                    shift_us: if kind == StreamKind::Gps {
-                        options.gps_delay_added_us
-                    } else {
-                        0
-                    },
-                })
-                .collect(),
+            inputs,
             skips: SkipCounts::default(),
             format: files.format,
         };

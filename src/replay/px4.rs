@@ -19,12 +19,15 @@
 //! `s_variance_m_s` (a standard deviation despite its name) become the fix's
 //! accuracies.
 
+use super::columns::{
+    Clock, ImuLayout, MagLayout, RowFlag, TimeUnit, check_flags, imu_stream, mag_stream,
+};
 use super::table::{
     CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
 };
 use super::{
     GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
-    SkipCounts, SkipKind, StreamKind, imu_event, mag_event,
+    SensorStreams, SkipCounts, SkipKind,
 };
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
@@ -93,60 +96,47 @@ pub(crate) fn locate(files: &[PathBuf], searched: &str) -> Result<LogFiles, Repl
     })
 }
 
-type Streams<T> = Vec<(StreamKind, RowStream<SensorEvent<T>>)>;
+/// PX4's clock: integer microseconds since boot in `timestamp`.
+const CLOCK: Clock = Clock {
+    column: TIME_COLUMN,
+    unit: TimeUnit::Microseconds,
+};
 
-pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<Streams<T>, ReplayError> {
-    let mut streams = vec![
-        (StreamKind::Imu, imu_stream(&files.imu)?),
-        (StreamKind::Gps, gps_stream(&files.gps)?),
-    ];
-    if let Some(mag) = &files.mag {
-        streams.push((StreamKind::Mag, mag_stream(mag)?));
-    }
-    Ok(streams)
-}
-
-/// Indices of the array columns `name[0]`, `name[1]`, `name[2]`.
-fn array3(table: &CsvTable, name: &str) -> Result<[usize; 3], ReplayError> {
-    Ok([
-        table.column(&format!("{name}[0]"))?,
-        table.column(&format!("{name}[1]"))?,
-        table.column(&format!("{name}[2]"))?,
-    ])
-}
-
-struct ImuColumns {
-    t: usize,
-    gyro: [usize; 3],
-    accel: [usize; 3],
-    accel_relative: Option<usize>,
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        let t_us = microseconds(rec, self.t)?;
-        if let Some(rel) = optional_number(rec, self.accel_relative)?
-            && rel == RELATIVE_TIMESTAMP_INVALID as f64
-        {
-            return Err(SkipKind::Invalid);
-        }
-        imu_event(t_us, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
-    }
-}
-
-fn imu_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = ImuColumns {
-        t: table.column(TIME_COLUMN)?,
-        gyro: array3(&table, "gyro_rad")?,
-        accel: array3(&table, "accelerometer_m_s2")?,
-        accel_relative: table.find("accelerometer_timestamp_relative"),
+pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
+    let imu = ImuLayout {
+        clock: CLOCK,
+        gyro: ["gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"],
+        accel: [
+            "accelerometer_m_s2[0]",
+            "accelerometer_m_s2[1]",
+            "accelerometer_m_s2[2]",
+        ],
     };
-    Ok(RowStream::new(table, Box::new(parser), "imu"))
+    let mag = MagLayout {
+        clock: CLOCK,
+        field: [
+            "magnetometer_ga[0]",
+            "magnetometer_ga[1]",
+            "magnetometer_ga[2]",
+        ],
+        scale: 1.0,
+    };
+    let accel_invalid = |table: &CsvTable| {
+        vec![RowFlag {
+            column: table.find("accelerometer_timestamp_relative"),
+            rejects: |relative| relative == RELATIVE_TIMESTAMP_INVALID as f64,
+            kind: SkipKind::Invalid,
+        }]
+    };
+    Ok(SensorStreams {
+        imu: imu_stream(&files.imu, &imu, accel_invalid)?,
+        gps: gps_stream(&files.gps)?,
+        mag: files
+            .mag
+            .as_deref()
+            .map(|p| mag_stream(p, &mag, |_| Vec::new()))
+            .transpose()?,
+    })
 }
 
 /// The two position layouts of PX4's GPS topics.
@@ -164,10 +154,9 @@ const MM_PER_M: f64 = 1e3;
 
 struct GpsColumns {
     t: usize,
-    fix: usize,
+    flags: [RowFlag; 2],
     position: PositionColumns,
     velocity: [usize; 3],
-    velocity_valid: Option<usize>,
     eph: Option<usize>,
     epv: Option<usize>,
     speed_accuracy: Option<usize>,
@@ -180,12 +169,7 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
         _: &mut SkipCounts,
     ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = microseconds(rec, self.t)?;
-        if number(rec, self.fix)? < MIN_FIX_TYPE {
-            return Err(SkipKind::NoFix);
-        }
-        if optional_number(rec, self.velocity_valid)? == Some(0.0) {
-            return Err(SkipKind::Invalid);
-        }
+        check_flags(&self.flags, rec)?;
         let geodetic = match self.position {
             PositionColumns::Degrees([lat, lon, alt]) => Geodetic {
                 lat_deg: number(rec, lat)?,
@@ -226,39 +210,25 @@ fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, Repla
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,
-        fix: table.column("fix_type")?,
+        flags: [
+            RowFlag {
+                column: Some(table.column("fix_type")?),
+                rejects: |fix| fix < MIN_FIX_TYPE,
+                kind: SkipKind::NoFix,
+            },
+            RowFlag {
+                column: table.find("vel_ned_valid"),
+                rejects: |valid| valid == 0.0,
+                kind: SkipKind::Invalid,
+            },
+        ],
         position,
         velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
-        velocity_valid: table.find("vel_ned_valid"),
         eph: table.find("eph"),
         epv: table.find("epv"),
         speed_accuracy: table.find("s_variance_m_s"),
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
-}
-
-struct MagColumns {
-    t: usize,
-    field: [usize; 3],
-}
-
-impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
-    fn parse(
-        &mut self,
-        rec: &StringRecord,
-        _: &mut SkipCounts,
-    ) -> Result<SensorEvent<T>, SkipKind> {
-        mag_event(microseconds(rec, self.t)?, vector3(rec, self.field)?)
-    }
-}
-
-fn mag_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
-    let table = CsvTable::open(path)?;
-    let parser = MagColumns {
-        t: table.column(TIME_COLUMN)?,
-        field: array3(&table, "magnetometer_ga")?,
-    };
-    Ok(RowStream::new(table, Box::new(parser), "mag"))
 }
 
 struct AttitudeColumns {

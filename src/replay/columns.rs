@@ -1,0 +1,163 @@
+//! Row parsers shared by the layouts: how a row is stamped, validity flags,
+//! and the IMU and magnetometer rows, which differ between layouts only in
+//! column names, time unit, field scale and flags.
+
+use super::table::{
+    CsvTable, RowParser, RowStream, microseconds, optional_number, seconds_as_us, vector3,
+};
+use super::{ReplayError, SensorEvent, SkipCounts, SkipKind, imu_event, mag_event};
+use crate::scalar::Scalar;
+use csv::StringRecord;
+use std::path::Path;
+
+/// How a file stamps its rows.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum TimeColumn {
+    /// Integer microseconds (crate format `t_us`, PX4 `timestamp`).
+    Microseconds(usize),
+    /// Seconds, rounded to microseconds (ArduPilot `t_s`).
+    Seconds(usize),
+}
+
+impl TimeColumn {
+    /// Finds the time column `name` of unit `unit`.
+    pub(crate) fn find(table: &CsvTable, name: &str, unit: TimeUnit) -> Result<Self, ReplayError> {
+        let idx = table.column(name)?;
+        Ok(match unit {
+            TimeUnit::Microseconds => Self::Microseconds(idx),
+            TimeUnit::Seconds => Self::Seconds(idx),
+        })
+    }
+
+    /// The row's time, microseconds.
+    pub(crate) fn read(self, rec: &StringRecord) -> Result<u64, SkipKind> {
+        match self {
+            Self::Microseconds(idx) => microseconds(rec, idx),
+            Self::Seconds(idx) => seconds_as_us(rec, idx),
+        }
+    }
+}
+
+/// Unit of a layout's time column.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum TimeUnit {
+    Microseconds,
+    Seconds,
+}
+
+/// The name and unit of a layout's time column.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Clock {
+    pub(crate) column: &'static str,
+    pub(crate) unit: TimeUnit,
+}
+
+/// A per-row validity flag: when the cell's value satisfies `rejects`, the
+/// row is skipped as `kind`. An absent column or empty cell passes.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RowFlag {
+    pub(crate) column: Option<usize>,
+    pub(crate) rejects: fn(f64) -> bool,
+    pub(crate) kind: SkipKind,
+}
+
+impl RowFlag {
+    pub(crate) fn check(&self, rec: &StringRecord) -> Result<(), SkipKind> {
+        match optional_number(rec, self.column)? {
+            Some(v) if (self.rejects)(v) => Err(self.kind),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Checks every flag of a row.
+pub(crate) fn check_flags(flags: &[RowFlag], rec: &StringRecord) -> Result<(), SkipKind> {
+    flags.iter().try_for_each(|f| f.check(rec))
+}
+
+/// An IMU row: time, gyro and accelerometer triples, flags.
+struct ImuColumns {
+    time: TimeColumn,
+    gyro: [usize; 3],
+    accel: [usize; 3],
+    flags: Vec<RowFlag>,
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for ImuColumns {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
+        let t_us = self.time.read(rec)?;
+        check_flags(&self.flags, rec)?;
+        imu_event(t_us, vector3(rec, self.gyro)?, vector3(rec, self.accel)?)
+    }
+}
+
+/// The column names of an IMU file.
+pub(crate) struct ImuLayout {
+    pub(crate) clock: Clock,
+    pub(crate) gyro: [&'static str; 3],
+    pub(crate) accel: [&'static str; 3],
+}
+
+/// The IMU stream of `path`; `flags` builds the validity flags from the table.
+pub(crate) fn imu_stream<T: Scalar>(
+    path: &Path,
+    layout: &ImuLayout,
+    flags: impl FnOnce(&CsvTable) -> Vec<RowFlag>,
+) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = ImuColumns {
+        time: TimeColumn::find(&table, layout.clock.column, layout.clock.unit)?,
+        gyro: table.columns3(layout.gyro)?,
+        accel: table.columns3(layout.accel)?,
+        flags: flags(&table),
+    };
+    Ok(RowStream::new(table, Box::new(parser), "imu"))
+}
+
+/// A magnetometer row: time, field triple times `scale`, flags.
+struct MagColumns {
+    time: TimeColumn,
+    field: [usize; 3],
+    scale: f64,
+    flags: Vec<RowFlag>,
+}
+
+impl<T: Scalar> RowParser<SensorEvent<T>> for MagColumns {
+    fn parse(
+        &mut self,
+        rec: &StringRecord,
+        _: &mut SkipCounts,
+    ) -> Result<SensorEvent<T>, SkipKind> {
+        let t_us = self.time.read(rec)?;
+        check_flags(&self.flags, rec)?;
+        mag_event(t_us, vector3(rec, self.field)? * self.scale)
+    }
+}
+
+/// The column names and unit of a magnetometer file.
+pub(crate) struct MagLayout {
+    pub(crate) clock: Clock,
+    pub(crate) field: [&'static str; 3],
+    /// Multiplies the file's values (e.g. 1e-3 from mGauss to gauss).
+    pub(crate) scale: f64,
+}
+
+/// The magnetometer stream of `path`.
+pub(crate) fn mag_stream<T: Scalar>(
+    path: &Path,
+    layout: &MagLayout,
+    flags: impl FnOnce(&CsvTable) -> Vec<RowFlag>,
+) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
+    let table = CsvTable::open(path)?;
+    let parser = MagColumns {
+        time: TimeColumn::find(&table, layout.clock.column, layout.clock.unit)?,
+        field: table.columns3(layout.field)?,
+        scale: layout.scale,
+        flags: flags(&table),
+    };
+    Ok(RowStream::new(table, Box::new(parser), "mag"))
+}
