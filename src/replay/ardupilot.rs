@@ -21,7 +21,10 @@
 //! the trim with [`alignment_from_params`]; log171's values are
 //! [`LOG171_ALIGNMENT`].
 
-use super::columns::{Clock, ImuLayout, MagLayout, RowFlag, TimeUnit, imu_stream, mag_stream};
+use super::columns::{
+    ACCEL_COLUMNS, Clock, GYRO_COLUMNS, ImuLayout, MagLayout, RowFlag, TimeUnit, imu_stream,
+    mag_stream,
+};
 use super::table::{CsvTable, RowParser, RowStream, number, seconds_as_us, vector3};
 use super::{
     ArduPilotImu, ArduPilotReference, GpsRow, GpsRowPosition, LogFiles, LogFormat, ReaderOptions,
@@ -94,8 +97,8 @@ const CLOCK: Clock = Clock {
 pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
     let imu = ImuLayout {
         clock: CLOCK,
-        gyro: ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"],
-        accel: ["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"],
+        gyro: GYRO_COLUMNS,
+        accel: ACCEL_COLUMNS,
     };
     let mag = MagLayout {
         clock: CLOCK,

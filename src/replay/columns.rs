@@ -10,6 +10,11 @@ use crate::scalar::Scalar;
 use csv::StringRecord;
 use std::path::Path;
 
+/// Gyro columns of the crate's and ArduPilot's IMU files (rad/s, body FRD).
+pub(crate) const GYRO_COLUMNS: [&str; 3] = ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"];
+/// Accelerometer columns of the crate's and ArduPilot's IMU files (m/s², body FRD).
+pub(crate) const ACCEL_COLUMNS: [&str; 3] = ["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"];
+
 /// How a file stamps its rows.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum TimeColumn {

@@ -10,7 +10,9 @@
 //! counted as [`NoFix`](super::SkipKind::NoFix). `truth.csv` is read as the
 //! reference: attitude from `q0..q3`, velocity and position NED.
 
-use super::columns::{Clock, ImuLayout, MagLayout, TimeUnit, imu_stream, mag_stream};
+use super::columns::{
+    ACCEL_COLUMNS, Clock, GYRO_COLUMNS, ImuLayout, MagLayout, TimeUnit, imu_stream, mag_stream,
+};
 use super::table::{
     CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
 };
@@ -47,8 +49,8 @@ const CLOCK: Clock = Clock {
 pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
     let imu = ImuLayout {
         clock: CLOCK,
-        gyro: ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"],
-        accel: ["acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"],
+        gyro: GYRO_COLUMNS,
+        accel: ACCEL_COLUMNS,
     };
     let mag = MagLayout {
         clock: CLOCK,
@@ -109,17 +111,12 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
 /// The stream of a `gps.csv` of the crate's format.
 fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
     let table = CsvTable::open(path)?;
-    let position = match table.columns3(["lat_deg", "lon_deg", "alt_m"]) {
-        Ok(idx) => PositionColumns::Geodetic(idx),
-        Err(_) => match table.columns3(["pos_n_m", "pos_e_m", "pos_d_m"]) {
-            Ok(idx) => PositionColumns::Ned(idx),
-            Err(_) => {
-                return Err(ReplayError::MissingColumn {
-                    path: path.to_path_buf(),
-                    column: "lat_deg,lon_deg,alt_m | pos_n_m,pos_e_m,pos_d_m".to_string(),
-                });
-            }
-        },
+    let position = match table.one_of3(&[
+        ["lat_deg", "lon_deg", "alt_m"],
+        ["pos_n_m", "pos_e_m", "pos_d_m"],
+    ])? {
+        (0, idx) => PositionColumns::Geodetic(idx),
+        (_, idx) => PositionColumns::Ned(idx),
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,

@@ -196,17 +196,12 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
 
 fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
     let table = CsvTable::open(path)?;
-    let position = match table.columns3(["latitude_deg", "longitude_deg", "altitude_msl_m"]) {
-        Ok(idx) => PositionColumns::Degrees(idx),
-        Err(_) => match table.columns3(["lat", "lon", "alt"]) {
-            Ok(idx) => PositionColumns::Scaled(idx),
-            Err(_) => {
-                return Err(ReplayError::MissingColumn {
-                    path: path.to_path_buf(),
-                    column: "latitude_deg,longitude_deg,altitude_msl_m | lat,lon,alt".to_string(),
-                });
-            }
-        },
+    let position = match table.one_of3(&[
+        ["latitude_deg", "longitude_deg", "altitude_msl_m"],
+        ["lat", "lon", "alt"],
+    ])? {
+        (0, idx) => PositionColumns::Degrees(idx),
+        (_, idx) => PositionColumns::Scaled(idx),
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,

@@ -74,6 +74,27 @@ impl CsvTable {
         ])
     }
 
+    /// The first of several alternative column triples that the header
+    /// has: its position in `alternatives` and its indices. None present is
+    /// a `MissingColumn` error listing them all.
+    pub(crate) fn one_of3(
+        &self,
+        alternatives: &[[&str; 3]],
+    ) -> Result<(usize, [usize; 3]), ReplayError> {
+        alternatives
+            .iter()
+            .enumerate()
+            .find_map(|(k, names)| self.columns3(*names).ok().map(|idx| (k, idx)))
+            .ok_or_else(|| ReplayError::MissingColumn {
+                path: self.path.clone(),
+                column: alternatives
+                    .iter()
+                    .map(|a| a.join(","))
+                    .collect::<Vec<_>>()
+                    .join(" | "),
+            })
+    }
+
     /// Indices of four required columns.
     pub(crate) fn columns4(&self, names: [&str; 4]) -> Result<[usize; 4], ReplayError> {
         let [a, b, c] = self.columns3([names[0], names[1], names[2]])?;
