@@ -22,8 +22,8 @@
 //! [`LOG171_ALIGNMENT`].
 
 use super::columns::{
-    ACCEL_COLUMNS, Clock, GYRO_COLUMNS, ImuLayout, MagLayout, RowFlag, TimeUnit, imu_stream,
-    mag_stream,
+    ACCEL_COLUMNS, Clock, GYRO_COLUMNS, GeodeticColumns, ImuLayout, MagLayout, RowFlag, TimeUnit,
+    imu_stream, mag_stream,
 };
 use super::table::{CsvTable, RowParser, RowStream, number, seconds_as_us, vector3};
 use super::{
@@ -33,7 +33,6 @@ use super::{
 };
 use crate::geo::quaternion_from_euler;
 use crate::scalar::Scalar;
-use crate::sensors::Geodetic;
 use csv::StringRecord;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -242,7 +241,7 @@ impl AccuracyJoin {
 struct GpsColumns {
     t: usize,
     fix: RowFlag,
-    position: [usize; 3],
+    position: GeodeticColumns,
     velocity: VelocityColumns,
     accuracy: Option<AccuracyJoin>,
 }
@@ -255,21 +254,16 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
     ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = seconds_as_us(rec, self.t)?;
         self.fix.check(rec)?;
-        let [lat, lon, alt] = self.position;
-        let position = GpsRowPosition::Geodetic(Geodetic {
-            lat_deg: number(rec, lat)?,
-            lon_deg: number(rec, lon)?,
-            alt_m: number(rec, alt)?,
-        });
+        let position = GpsRowPosition::Geodetic(self.position.read(rec)?);
         let velocity_ned_m_s = self.velocity.read(rec)?;
         let accuracy = self.accuracy.as_mut().and_then(|join| join.at(t_us, skips));
         GpsRow {
             t_us,
             position,
             velocity_ned_m_s,
-            horizontal_accuracy_m: accuracy.map(|a| a.horizontal_m),
-            vertical_accuracy_m: accuracy.map(|a| a.vertical_m),
-            speed_accuracy_m_s: accuracy.map(|a| a.speed_m_s),
+            accuracy: accuracy.map_or([None; 3], |a| {
+                [Some(a.horizontal_m), Some(a.vertical_m), Some(a.speed_m_s)]
+            }),
         }
         .into_event()
     }
@@ -295,7 +289,7 @@ fn gps_stream<T: Scalar>(
             rejects: |status| status < MIN_FIX_STATUS,
             kind: SkipKind::NoFix,
         },
-        position: table.columns3(["lat_deg", "lon_deg", "alt_msl_m"])?,
+        position: GeodeticColumns::unscaled(table.columns3(["lat_deg", "lon_deg", "alt_msl_m"])?),
         velocity,
         accuracy: accuracy.map(AccuracyJoin::open).transpose()?,
     };

@@ -7,6 +7,7 @@ use super::table::{
 };
 use super::{ReplayError, SensorEvent, SkipCounts, SkipKind, imu_event, mag_event};
 use crate::scalar::Scalar;
+use crate::sensors::Geodetic;
 use csv::StringRecord;
 use std::path::Path;
 
@@ -165,4 +166,50 @@ pub(crate) fn mag_stream<T: Scalar>(
         flags: flags(&table),
     };
     Ok(RowStream::new(table, Box::new(parser), "mag"))
+}
+
+/// Latitude, longitude and height columns, and the factors that turn their
+/// values into degrees, degrees and metres.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct GeodeticColumns {
+    pub(crate) idx: [usize; 3],
+    pub(crate) scale: [f64; 3],
+}
+
+impl GeodeticColumns {
+    /// Columns already in degrees and metres.
+    pub(crate) fn unscaled(idx: [usize; 3]) -> Self {
+        Self {
+            idx,
+            scale: [1.0; 3],
+        }
+    }
+
+    pub(crate) fn read(&self, rec: &StringRecord) -> Result<Geodetic, SkipKind> {
+        let v = vector3(rec, self.idx)?;
+        Ok(Geodetic {
+            lat_deg: v.x * self.scale[0],
+            lon_deg: v.y * self.scale[1],
+            alt_m: v.z * self.scale[2],
+        })
+    }
+}
+
+/// Optional horizontal (m), vertical (m) and speed (m/s) accuracy columns;
+/// an absent column or empty cell is "not reported".
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct AccuracyColumns([Option<usize>; 3]);
+
+impl AccuracyColumns {
+    pub(crate) fn find(table: &CsvTable, names: [&str; 3]) -> Self {
+        Self(names.map(|n| table.find(n)))
+    }
+
+    pub(crate) fn read(&self, rec: &StringRecord) -> Result<[Option<f64>; 3], SkipKind> {
+        Ok([
+            optional_number(rec, self.0[0])?,
+            optional_number(rec, self.0[1])?,
+            optional_number(rec, self.0[2])?,
+        ])
+    }
 }

@@ -11,17 +11,15 @@
 //! reference: attitude from `q0..q3`, velocity and position NED.
 
 use super::columns::{
-    ACCEL_COLUMNS, Clock, GYRO_COLUMNS, ImuLayout, MagLayout, TimeUnit, imu_stream, mag_stream,
+    ACCEL_COLUMNS, AccuracyColumns, Clock, GYRO_COLUMNS, GeodeticColumns, ImuLayout, MagLayout,
+    TimeUnit, imu_stream, mag_stream,
 };
-use super::table::{
-    CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
-};
+use super::table::{CsvTable, RowParser, RowStream, microseconds, unit_quaternion, vector3};
 use super::{
     GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
     SensorStreams, SkipCounts, SkipKind, named, require,
 };
 use crate::scalar::Scalar;
-use crate::sensors::Geodetic;
 use csv::StringRecord;
 use std::path::{Path, PathBuf};
 
@@ -69,7 +67,7 @@ pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<
 }
 
 enum PositionColumns {
-    Geodetic([usize; 3]),
+    Geodetic(GeodeticColumns),
     Ned([usize; 3]),
 }
 
@@ -77,9 +75,7 @@ struct GpsColumns {
     t: usize,
     position: PositionColumns,
     velocity: [usize; 3],
-    h_acc: Option<usize>,
-    v_acc: Option<usize>,
-    s_acc: Option<usize>,
+    accuracy: AccuracyColumns,
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
@@ -89,20 +85,14 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
         _: &mut SkipCounts,
     ) -> Result<SensorEvent<T>, SkipKind> {
         let position = match self.position {
-            PositionColumns::Geodetic([lat, lon, alt]) => GpsRowPosition::Geodetic(Geodetic {
-                lat_deg: number(rec, lat)?,
-                lon_deg: number(rec, lon)?,
-                alt_m: number(rec, alt)?,
-            }),
+            PositionColumns::Geodetic(columns) => GpsRowPosition::Geodetic(columns.read(rec)?),
             PositionColumns::Ned(idx) => GpsRowPosition::Ned(vector3(rec, idx)?),
         };
         GpsRow {
             t_us: microseconds(rec, self.t)?,
             position,
             velocity_ned_m_s: vector3(rec, self.velocity)?,
-            horizontal_accuracy_m: optional_number(rec, self.h_acc)?,
-            vertical_accuracy_m: optional_number(rec, self.v_acc)?,
-            speed_accuracy_m_s: optional_number(rec, self.s_acc)?,
+            accuracy: self.accuracy.read(rec)?,
         }
         .into_event()
     }
@@ -115,16 +105,14 @@ fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, Repla
         ["lat_deg", "lon_deg", "alt_m"],
         ["pos_n_m", "pos_e_m", "pos_d_m"],
     ])? {
-        (0, idx) => PositionColumns::Geodetic(idx),
+        (0, idx) => PositionColumns::Geodetic(GeodeticColumns::unscaled(idx)),
         (_, idx) => PositionColumns::Ned(idx),
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,
         position,
         velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
-        h_acc: table.find("h_acc_m"),
-        v_acc: table.find("v_acc_m"),
-        s_acc: table.find("s_acc_m_s"),
+        accuracy: AccuracyColumns::find(&table, ["h_acc_m", "v_acc_m", "s_acc_m_s"]),
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
 }

@@ -660,9 +660,8 @@ pub(crate) struct GpsRow {
     pub(crate) t_us: u64,
     pub(crate) position: GpsRowPosition,
     pub(crate) velocity_ned_m_s: Vector3<f64>,
-    pub(crate) horizontal_accuracy_m: Option<f64>,
-    pub(crate) vertical_accuracy_m: Option<f64>,
-    pub(crate) speed_accuracy_m_s: Option<f64>,
+    /// Horizontal (m), vertical (m) and speed (m/s) accuracy, if reported.
+    pub(crate) accuracy: [Option<f64>; 3],
 }
 
 /// A GPS position as read.
@@ -686,9 +685,9 @@ impl GpsRow {
                 GpsRowPosition::Ned(p) => GpsPosition::Ned(p.map(T::lit)),
             },
             velocity_ned_m_s: self.velocity_ned_m_s.map(T::lit),
-            horizontal_accuracy_m: self.horizontal_accuracy_m.map(T::lit),
-            vertical_accuracy_m: self.vertical_accuracy_m.map(T::lit),
-            speed_accuracy_m_s: self.speed_accuracy_m_s.map(T::lit),
+            horizontal_accuracy_m: self.accuracy[0].map(T::lit),
+            vertical_accuracy_m: self.accuracy[1].map(T::lit),
+            speed_accuracy_m_s: self.accuracy[2].map(T::lit),
         };
         Ok(SensorEvent::Gps(checked_gps(&gps)?))
     }

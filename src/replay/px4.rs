@@ -20,17 +20,15 @@
 //! accuracies.
 
 use super::columns::{
-    Clock, ImuLayout, MagLayout, RowFlag, TimeUnit, check_flags, imu_stream, mag_stream,
+    AccuracyColumns, Clock, GeodeticColumns, ImuLayout, MagLayout, RowFlag, TimeUnit, check_flags,
+    imu_stream, mag_stream,
 };
-use super::table::{
-    CsvTable, RowParser, RowStream, microseconds, number, optional_number, unit_quaternion, vector3,
-};
+use super::table::{CsvTable, RowParser, RowStream, microseconds, unit_quaternion, vector3};
 use super::{
     GpsRow, GpsRowPosition, LogFiles, LogFormat, ReferenceSample, ReplayError, SensorEvent,
     SensorStreams, SkipCounts, SkipKind,
 };
 use crate::scalar::Scalar;
-use crate::sensors::Geodetic;
 use csv::StringRecord;
 use std::path::{Path, PathBuf};
 
@@ -139,14 +137,6 @@ pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<
     })
 }
 
-/// The two position layouts of PX4's GPS topics.
-enum PositionColumns {
-    /// `latitude_deg, longitude_deg, altitude_msl_m` (PX4 1.14 and later).
-    Degrees([usize; 3]),
-    /// `lat, lon` in 1e-7 deg, `alt` in mm (older releases).
-    Scaled([usize; 3]),
-}
-
 /// 1e-7 degree units per degree.
 const SCALED_DEG_PER_DEG: f64 = 1e7;
 /// Millimetres per metre.
@@ -155,11 +145,9 @@ const MM_PER_M: f64 = 1e3;
 struct GpsColumns {
     t: usize,
     flags: [RowFlag; 2],
-    position: PositionColumns,
+    position: GeodeticColumns,
     velocity: [usize; 3],
-    eph: Option<usize>,
-    epv: Option<usize>,
-    speed_accuracy: Option<usize>,
+    accuracy: AccuracyColumns,
 }
 
 impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
@@ -170,25 +158,11 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
     ) -> Result<SensorEvent<T>, SkipKind> {
         let t_us = microseconds(rec, self.t)?;
         check_flags(&self.flags, rec)?;
-        let geodetic = match self.position {
-            PositionColumns::Degrees([lat, lon, alt]) => Geodetic {
-                lat_deg: number(rec, lat)?,
-                lon_deg: number(rec, lon)?,
-                alt_m: number(rec, alt)?,
-            },
-            PositionColumns::Scaled([lat, lon, alt]) => Geodetic {
-                lat_deg: number(rec, lat)? / SCALED_DEG_PER_DEG,
-                lon_deg: number(rec, lon)? / SCALED_DEG_PER_DEG,
-                alt_m: number(rec, alt)? / MM_PER_M,
-            },
-        };
         GpsRow {
             t_us,
-            position: GpsRowPosition::Geodetic(geodetic),
+            position: GpsRowPosition::Geodetic(self.position.read(rec)?),
             velocity_ned_m_s: vector3(rec, self.velocity)?,
-            horizontal_accuracy_m: optional_number(rec, self.eph)?,
-            vertical_accuracy_m: optional_number(rec, self.epv)?,
-            speed_accuracy_m_s: optional_number(rec, self.speed_accuracy)?,
+            accuracy: self.accuracy.read(rec)?,
         }
         .into_event()
     }
@@ -200,8 +174,17 @@ fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, Repla
         ["latitude_deg", "longitude_deg", "altitude_msl_m"],
         ["lat", "lon", "alt"],
     ])? {
-        (0, idx) => PositionColumns::Degrees(idx),
-        (_, idx) => PositionColumns::Scaled(idx),
+        // Newer layout: degrees and metres.
+        (0, idx) => GeodeticColumns::unscaled(idx),
+        // Older layout: lat/lon in 1e-7 deg, alt in mm.
+        (_, idx) => GeodeticColumns {
+            idx,
+            scale: [
+                1.0 / SCALED_DEG_PER_DEG,
+                1.0 / SCALED_DEG_PER_DEG,
+                1.0 / MM_PER_M,
+            ],
+        },
     };
     let parser = GpsColumns {
         t: table.column(TIME_COLUMN)?,
@@ -219,9 +202,7 @@ fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, Repla
         ],
         position,
         velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
-        eph: table.find("eph"),
-        epv: table.find("epv"),
-        speed_accuracy: table.find("s_variance_m_s"),
+        accuracy: AccuracyColumns::find(&table, ["eph", "epv", "s_variance_m_s"]),
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
 }
