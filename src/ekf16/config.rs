@@ -117,15 +117,14 @@ impl<T: Scalar> Default for Ekf16Config<T> {
         let g = STANDARD_GRAVITY;
         Self {
             gravity_m_s2: T::lit(g),
-            gyro_noise_density: T::lit((TABLE3_GYRO_VARIANCE / PAPER_IMU_RATE_HZ).sqrt()),
-            accel_noise_density: T::lit(
-                (TABLE3_ACCEL_VARIANCE_G2 * g * g / PAPER_IMU_RATE_HZ).sqrt(),
-            ),
+            gyro_noise_density: T::lit(TABLE3_GYRO_VARIANCE / PAPER_IMU_RATE_HZ).sqrt(),
+            accel_noise_density: T::lit(TABLE3_ACCEL_VARIANCE_G2 * g * g / PAPER_IMU_RATE_HZ)
+                .sqrt(),
             gyro_bias_random_walk: T::lit(1e-4),
             accel_bias_random_walk: T::lit(1e-3),
-            gps_horizontal_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE.sqrt()),
-            gps_vertical_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE.sqrt()),
-            gps_velocity_std_m_s: T::lit(TABLE3_GPS_VELOCITY_VARIANCE.sqrt()),
+            gps_horizontal_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE).sqrt(),
+            gps_vertical_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE).sqrt(),
+            gps_velocity_std_m_s: T::lit(TABLE3_GPS_VELOCITY_VARIANCE).sqrt(),
             use_receiver_accuracy: true,
             lever_arm_m: Vector3::zeros(),
             origin: None,
@@ -142,7 +141,7 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             align_min_samples: 1,
             initial_tilt_std_rad: T::lit(0.1),
             initial_yaw_std_rad: T::lit(0.3),
-            initial_yaw_std_no_mag_rad: T::lit(core::f64::consts::PI),
+            initial_yaw_std_no_mag_rad: T::lit(0.5),
             initial_position_std_m: T::lit(5.0),
             initial_velocity_std_m_s: T::lit(1.0),
             initial_accel_bias_std_m_s2: T::lit(0.1 * g),

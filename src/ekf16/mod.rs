@@ -25,13 +25,16 @@
 //! # Initialization
 //! Before the first GPS fix the filter only listens: it averages the
 //! accelerometer (running mean over up to `align_window` samples, then an
-//! exponential mean of the same length) and keeps the latest magnetometer
-//! sample. The first fix after `align_min_samples` IMU samples sets
+//! exponential mean of the same length) and the direction of the
+//! magnetometer field the same way. The first fix after `align_min_samples`
+//! IMU samples sets
 //!
 //! - roll and pitch from the mean specific force
 //!   ([`roll_pitch_from_accel`](crate::geo::roll_pitch_from_accel); valid when
 //!   the vehicle did not accelerate meanwhile);
-//! - yaw from the tilt-compensated magnetometer heading, or 0 with the
+//! - yaw from the tilt-compensated heading of the mean field direction (at
+//!   rest, averaging beats the latest sample; the paper's Table 3 noise is
+//!   17 deg of heading per sample), or 0 with the
 //!   variance `initial_yaw_std_no_mag_rad²` without a magnetometer;
 //! - position and velocity from the fix (minus the lever-arm terms), biases 0;
 //! - `P` diagonal from the configured standard deviations, the attitude block

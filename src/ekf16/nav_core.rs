@@ -8,7 +8,9 @@
 //!   random walk described by an [`ExtraState`] (initial value, initial
 //!   variance, intensity in unit²/s). Their process model is `x' = 0`; the
 //!   core never reads their values.
-//! - Covariance: `P` (`N x N`), symmetric after every operation.
+//! - Covariance: `P` (`N x N`), symmetric after every operation, its
+//!   quaternion rows and columns projected on the tangent space of the unit
+//!   sphere (`I - q q^T`) after every prediction and fusion.
 //! - Clock: the state describes the instant of the last accepted IMU sample
 //!   ([`NavCore::time_us`]). GPS and magnetometer samples are fused at that
 //!   instant, whatever their own timestamp (this filter has no delay handling;
@@ -18,7 +20,8 @@
 //!   [`process::propagate`] and the covariance with `A P A^T + Q`, where
 //!   `F`, `A`, `Q` are the 16-state ones padded with zeros and the extra
 //!   states' intensities on the diagonal of `Q'`. Before initialization it
-//!   only keeps the clock, the last sample and the accelerometer mean.
+//!   only keeps the clock, the last sample and the accelerometer mean (the
+//!   magnetometer direction is averaged by [`NavCore::push_mag`]).
 //! - [`NavCore::begin_gps`]: checks the fix (finite, increasing time),
 //!   converts it to NED (origin: configured, else the initializing fix) and
 //!   picks its noise (receiver accuracies or configured). Before
@@ -54,7 +57,7 @@ use crate::geo::{
 use crate::kalman;
 use crate::scalar::{Scalar, all_finite, us_to_s};
 use crate::sensors::{
-    GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample, check_time, checked_gps, checked_imu,
+    GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
     checked_mag,
 };
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
@@ -68,6 +71,45 @@ pub(crate) struct ExtraState<T: Scalar> {
     pub initial_variance: T,
     /// Random-walk intensity (variance growth per second).
     pub random_walk_intensity: T,
+}
+
+/// Mean of the last samples of a vector: a running mean up to `window`
+/// samples, then an exponential mean of weight `1 / window`. No storage
+/// beyond the mean.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct BoundedMean<T: Scalar> {
+    mean: Vector3<T>,
+    count: u32,
+}
+
+impl<T: Scalar> BoundedMean<T> {
+    fn push(&mut self, v: &Vector3<T>, window: u32) {
+        if self.count < window {
+            self.count += 1;
+        }
+        self.mean += (v - self.mean) / T::lit(f64::from(self.count));
+    }
+}
+
+/// Keeps the quaternion's covariance in the tangent space of the unit
+/// sphere at `q` (unit): `P <- T P T^T` with `T = blockdiag(I - q q^T, I)`.
+///
+/// The quaternion has four components and three degrees of freedom. Left
+/// alone, `P` gains variance along `q` itself (after each renormalization
+/// the old tangent space is slightly off), and since `R(q) u` scales with
+/// `|q|²`, the filter would then "explain" velocity errors by a change of
+/// the quaternion's norm that renormalization throws away, and drift.
+fn project_quaternion_covariance<T: Scalar, const N: usize>(
+    p: &mut SMatrix<T, N, N>,
+    x: &SVector<T, N>,
+) {
+    let q = x.fixed_rows::<4>(QUAT).into_owned();
+    let proj = nalgebra::Matrix4::identity() - q * q.transpose();
+    let rows = proj * p.fixed_rows::<4>(QUAT);
+    p.fixed_rows_mut::<4>(QUAT).copy_from(&rows);
+    let cols = p.fixed_columns::<4>(QUAT) * proj;
+    p.fixed_columns_mut::<4>(QUAT).copy_from(&cols);
+    kalman::symmetrize(p);
 }
 
 /// A checked GPS fix in the filter's NED frame, ready for a GPS model.
@@ -111,9 +153,8 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     last_imu: Option<Imu<T>>,
     gps_clock_us: Option<u64>,
     mag_clock_us: Option<u64>,
-    accel_mean: Vector3<T>,
-    accel_count: u32,
-    latest_mag: Option<Mag<T>>,
+    accel_mean: BoundedMean<T>,
+    mag_mean: BoundedMean<T>,
     frame: Option<LocalFrame>,
     last_gps: Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
     last_mag: Option<FusionRecord<T, 3>>,
@@ -148,9 +189,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             last_imu: None,
             gps_clock_us: None,
             mag_clock_us: None,
-            accel_mean: Vector3::zeros(),
-            accel_count: 0,
-            latest_mag: None,
+            accel_mean: BoundedMean::default(),
+            mag_mean: BoundedMean::default(),
             frame: config.origin.map(LocalFrame::new),
             last_gps: None,
             last_mag: None,
@@ -206,7 +246,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         core.x = *x;
         core.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
         core.p = *p;
-        kalman::symmetrize(&mut core.p);
+        project_quaternion_covariance(&mut core.p, &core.x);
         core.imu_clock_us = Some(t_us);
         core.initialized = true;
         Ok(core)
@@ -299,11 +339,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     fn accumulate_accel(&mut self, accel: &Vector3<T>) {
-        if self.accel_count < self.config.align_window {
-            self.accel_count += 1;
-        }
-        let w = T::one() / T::lit(f64::from(self.accel_count));
-        self.accel_mean += (accel - self.accel_mean) * w;
+        self.accel_mean.push(accel, self.config.align_window);
     }
 
     /// Feeds one IMU sample (see the module docs).
@@ -381,15 +417,17 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let (f, q) = self.jacobian_and_noise(&gyro, &accel, dt);
         let a = process::transition(&f, dt);
         let mut p = a * self.p * a.transpose() + q;
-        kalman::symmetrize(&mut p);
-        if !(all_finite(&x16) && all_finite(&p)) {
+        let mut x = self.x;
+        x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
+        project_quaternion_covariance(&mut p, &x);
+        if !(all_finite(&x) && all_finite(&p)) {
             self.refusals.imu_out_of_range += 1;
             return Err(Error::OutOfRange {
                 field: "imu",
                 reason: "the step would make the state non-finite",
             });
         }
-        self.x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
+        self.x = x;
         self.p = p;
         self.imu_clock_us = Some(s.t_us);
         self.last_imu = Some(s);
@@ -439,7 +477,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.frame = frame;
             return Ok(GpsStep::Measure(m));
         }
-        if self.last_imu.is_none() || self.accel_count < self.config.align_min_samples {
+        if self.last_imu.is_none() || self.accel_mean.count < self.config.align_min_samples {
             self.gps_clock_us = Some(fix.t_us);
             return Ok(GpsStep::Waiting);
         }
@@ -450,16 +488,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// Initial state and covariance from the accelerometer mean, the latest
-    /// magnetometer sample and a GPS fix.
+    /// magnetometer direction and a GPS fix.
     fn initialize(&mut self, fix: &GpsMeasurement<T>) -> Result<(), Error> {
         let c = self.config;
-        let (roll, pitch) = roll_pitch_from_accel(&self.accel_mean);
-        let (yaw, yaw_std) = match self.latest_mag {
-            Some(m) => (
-                tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad),
+        let (roll, pitch) = roll_pitch_from_accel(&self.accel_mean.mean);
+        let (yaw, yaw_std) = match self.mag_mean.count {
+            1.. => (
+                tilt_compensated_heading(&self.mag_mean.mean, roll, pitch, c.mag_declination_rad),
                 c.initial_yaw_std_rad,
             ),
-            None => (T::zero(), c.initial_yaw_std_no_mag_rad),
+            0 => (T::zero(), c.initial_yaw_std_no_mag_rad),
         };
         let q = quaternion_from_euler(roll, pitch, yaw);
         let rot = rotation_matrix(q.quaternion());
@@ -527,6 +565,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             let norm = quaternion_of(&self.x).norm();
             if norm > T::lit(0.5) && norm < T::lit(2.0) {
                 self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
+                project_quaternion_covariance(&mut self.p, &self.x);
             } else {
                 self.x = x_before;
                 self.p = p_before;
@@ -563,7 +602,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             .inspect_err(|_| self.refusals.mag_time += 1)?;
         if !self.initialized {
             self.mag_clock_us = Some(m.t_us);
-            self.latest_mag = Some(m);
+            self.mag_mean
+                .push(&m.field_body.normalize(), self.config.align_window);
             return Ok(MagOutcome::Stored);
         }
         let c = &self.config;
