@@ -2,7 +2,11 @@
 //! the antenna lever arm) and the heading-only magnetometer
 //! pseudo-measurement. Pure functions returning `h(x)` and `H = ∂h/∂x`.
 //!
-//! # GPS (paper eq. 8, rows 4-9, plus the lever arm)
+//! Equation numbers follow the published paper, where the pseudo-measurement
+//! and its three rotation matrices form eq. (6), the measurement model
+//! `z = h(x) + e` eq. (7) and its Jacobian `H` eq. (8).
+//!
+//! # GPS (eq. 7 rows 4-9 and eq. 8, plus the lever arm)
 //! The antenna sits at `l_b` (m, body FRD) from the IMU. With `w` the last
 //! measured rate:
 //!
@@ -15,9 +19,9 @@
 //!                  ∂h_v/∂b_w = R(q) [l_b ×]
 //! ```
 //!
-//! With `l_b = 0` these are the paper's identity rows of eq. (9)'s `H`.
+//! With `l_b = 0` these are the identity blocks of eq. (8).
 //!
-//! # Magnetometer (paper eq. 7, with `C_psi(3,3) = 1`)
+//! # Magnetometer (eqs. 6-8, with `C_psi(3,3) = 1`)
 //! The paper does not fuse the raw field. From the magnetometer it takes
 //! only the tilt-compensated true heading `psi_mag`
 //! ([`tilt_compensated_heading`](crate::geo::tilt_compensated_heading)) and
@@ -37,8 +41,10 @@
 //! horizontal and declination `D` east of north (the paper's text swaps
 //! sine and cosine of `I` there, measuring it from the vertical).
 //!
-//! The model holds `phi^`, `theta^` at the current estimate and lets only
-//! yaw depend on the state:
+//! Eq. (7) writes the model as `R(q)^T m_n`, whose Jacobian `H^m` would let
+//! the magnetometer pull roll and pitch. The model here holds `phi^`,
+//! `theta^` at the current estimate and lets only yaw depend on the state,
+//! which is what the paper's text asks of the pseudo-measurement:
 //!
 //! ```text
 //! h_m(x) = C_phi(phi^) C_theta(theta^) C_psi(psi(q)) m_n
@@ -146,7 +152,7 @@ pub fn heading_jacobian<T: Scalar>(q: &Quaternion<T>) -> RowVector4<T> {
 }
 
 /// The pseudo-measurement `m~ = C_phi(roll) C_theta(pitch) C_psi(heading) m_n`
-/// (eq. 7 with `C_psi(3,3) = 1`). Angles in radians, `m_n` unit NED field.
+/// (eq. 6 with `C_psi(3,3) = 1`). Angles in radians, `m_n` unit NED field.
 pub fn mag_pseudo_measurement<T: Scalar>(
     roll: T,
     pitch: T,

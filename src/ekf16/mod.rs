@@ -9,6 +9,20 @@
 //! | gain, Joseph update, gating | [`kalman`](crate::kalman) | eqs. (9)-(10) |
 //! | configuration | [`config`] | Table 3 defaults |
 //!
+//! # Where this departs from the paper's print
+//! - eq. (3): the (3,1) entry of `R(q)` is `2(q1 q3 - q0 q2)` (printed with `+`);
+//! - eq. (4): the attitude is integrated with the exact rotation over the
+//!   step, not an Euler step (see [`process`]);
+//! - eq. (5): `P = A P A^T + Q` (the transpose is missing);
+//! - eq. (6): `C_psi(3,3) = 1` (printed 0), and `m_n = [cos I cos D, cos I sin D, sin I]`
+//!   with `I` measured down from horizontal;
+//! - eqs. (7)-(8): the magnetometer model holds roll and pitch fixed so it
+//!   corrects yaw only, as the text intends (see [`measurement`]);
+//! - eq. (9): `K = P H^T (H P H^T + R)^-1` (printed `H^T P H^T`);
+//! - additions: Joseph-form update, chi-square gating, the GPS lever arm,
+//!   and the quaternion's covariance kept in the tangent space of the unit
+//!   sphere (see `docs/math.md`).
+//!
 //! # One cycle
 //! - **IMU sample** ([`Navigator::push_imu`]): the step length is the
 //!   difference of consecutive IMU timestamps (any rate, 50 Hz to 1 kHz and
