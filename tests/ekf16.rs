@@ -187,6 +187,18 @@ fn fly<T: Scalar, N: Navigator<T>>(nav: &mut N, s: &Scenario, mut each: impl FnM
     }
 }
 
+/// A GPS fix without receiver accuracies.
+fn gps_fix<T: Scalar>(t_us: u64, position: GpsPosition<T>, velocity: Vector3<T>) -> Gps<T> {
+    Gps {
+        t_us,
+        position,
+        velocity_ned_m_s: velocity,
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    }
+}
+
 /// Roll, pitch, yaw errors (rad, wrapped) of an estimate against the truth.
 fn euler_error<T: Scalar>(e: &Estimate<T>, tr: &Truth) -> Vector3<f64> {
     let est = to_f64(&e.euler_rad());
@@ -366,39 +378,36 @@ macro_rules! ekf16_tests {
                         reason: "must be positive"
                     })
                 );
-                let bad = Ekf16Config {
-                    mag_noise_variance: lit(f64::NAN),
-                    ..c
+                let field_of = |bad: Ekf16Config<T>| match bad.validate() {
+                    Err(Error::InvalidConfig { field, .. }) => field,
+                    other => panic!("expected InvalidConfig, got {other:?}"),
                 };
-                assert!(matches!(
-                    bad.validate(),
-                    Err(Error::InvalidConfig {
-                        field: "mag_noise_variance",
-                        ..
-                    })
-                ));
-                let bad = Ekf16Config {
-                    max_imu_step_us: 0,
-                    ..c
-                };
-                assert!(matches!(
-                    bad.validate(),
-                    Err(Error::InvalidConfig {
-                        field: "max_imu_step_us",
-                        ..
-                    })
-                ));
+                assert_eq!(
+                    field_of(Ekf16Config {
+                        mag_noise_variance: lit(f64::NAN),
+                        ..c
+                    }),
+                    "mag_noise_variance"
+                );
+                assert_eq!(
+                    field_of(Ekf16Config {
+                        max_imu_step_us: 0,
+                        ..c
+                    }),
+                    "max_imu_step_us"
+                );
+                assert_eq!(
+                    field_of(Ekf16Config {
+                        align_min_samples: 1000,
+                        ..c
+                    }),
+                    "align_min_samples"
+                );
                 let bad = Ekf16Config {
                     mag_inclination_rad: lit(1.6),
                     ..c
                 };
-                assert!(matches!(
-                    bad.validate(),
-                    Err(Error::InvalidConfig {
-                        field: "mag_inclination_rad",
-                        ..
-                    })
-                ));
+                assert_eq!(field_of(bad), "mag_inclination_rad");
                 let no_gate = Ekf16Config {
                     gps_position_gate: lit(f64::INFINITY),
                     ..c
@@ -433,13 +442,12 @@ macro_rules! ekf16_tests {
                     ..config::<T>()
                 };
                 let mut ekf = Ekf16::<T>::new(cfg).unwrap();
-                let fix = |t_us| Gps {
-                    t_us,
-                    position: GpsPosition::Ned(Vector3::new(lit(5.0), lit(6.0), lit(-7.0))),
-                    velocity_ned_m_s: Vector3::zeros(),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
+                let fix = |t_us| {
+                    gps_fix(
+                        t_us,
+                        GpsPosition::Ned(Vector3::new(lit(5.0), lit(6.0), lit(-7.0))),
+                        Vector3::zeros(),
+                    )
                 };
                 // No IMU yet: wait.
                 assert_eq!(ekf.push_gps(&fix(1)).unwrap(), GpsOutcome::Waiting);
@@ -454,14 +462,18 @@ macro_rules! ekf16_tests {
                     .unwrap(),
                     MagOutcome::Stored
                 );
-                for k in 1..=20u64 {
-                    let imu = Imu {
-                        t_us: k * 1000,
-                        gyro_rad_s: Vector3::zeros(),
-                        accel_m_s2: v3(&tr.accel),
-                    };
-                    ekf.push_imu(&imu).unwrap();
-                }
+                // 20 ms at rest at 1 kHz.
+                let align = |nav: &mut Ekf16<T>| {
+                    for k in 1..=20u64 {
+                        let imu = Imu {
+                            t_us: k * 1000,
+                            gyro_rad_s: Vector3::zeros(),
+                            accel_m_s2: v3(&tr.accel),
+                        };
+                        nav.push_imu(&imu).unwrap();
+                    }
+                };
+                align(&mut ekf);
                 assert_eq!(ekf.push_gps(&fix(20_500)).unwrap(), GpsOutcome::Initialized);
                 let e = ekf.estimate().unwrap();
                 assert_eq!(e.t_us, 20_000);
@@ -478,14 +490,7 @@ macro_rules! ekf16_tests {
                 assert!(p.fixed_view::<4, 4>(QUAT, QUAT).trace() > lit(0.0));
                 // Without magnetometer: yaw 0, large yaw variance.
                 let mut blind = Ekf16::<T>::new(config()).unwrap();
-                for k in 1..=20u64 {
-                    let imu = Imu {
-                        t_us: k * 1000,
-                        gyro_rad_s: Vector3::zeros(),
-                        accel_m_s2: v3(&tr.accel),
-                    };
-                    blind.push_imu(&imu).unwrap();
-                }
+                align(&mut blind);
                 blind.push_gps(&fix(20_500)).unwrap();
                 let e2 = blind.estimate().unwrap();
                 assert!(e2.euler_rad().z.abs() < lit(1e-6));
@@ -808,14 +813,8 @@ macro_rules! ekf16_tests {
                         got_us: t - 1
                     })
                 );
-                let gps = |t_us, p: Vector3<T>| Gps {
-                    t_us,
-                    position: GpsPosition::Ned(p),
-                    velocity_ned_m_s: Vector3::zeros(),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
+                let gps =
+                    |t_us, p: Vector3<T>| gps_fix(t_us, GpsPosition::Ned(p), Vector3::zeros());
                 assert_eq!(
                     ekf.push_gps(&gps(t + 1, Vector3::new(nan, lit(0.0), lit(0.0)))),
                     Err(Error::NonFinite {
@@ -924,14 +923,11 @@ macro_rules! ekf16_tests {
                 let before = snapshot(&ekf);
                 let e = ekf.estimate().unwrap();
                 let jump = Vector3::new(lit(200.0), lit(0.0), lit(0.0));
-                let fix = Gps {
-                    t_us: t + 1,
-                    position: GpsPosition::Ned(e.position_ned_m + jump),
-                    velocity_ned_m_s: e.velocity_ned_m_s + jump,
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
+                let fix = gps_fix(
+                    t + 1,
+                    GpsPosition::Ned(e.position_ned_m + jump),
+                    e.velocity_ned_m_s + jump,
+                );
                 let GpsOutcome::Fused { position, velocity } = ekf.push_gps(&fix).unwrap() else {
                     panic!("expected a fusion attempt")
                 };
@@ -988,13 +984,12 @@ macro_rules! ekf16_tests {
                     lon_deg: 149.16,
                     alt_m: 580.0,
                 };
-                let fix = |t_us, alt_m| Gps {
-                    t_us,
-                    position: GpsPosition::Geodetic(delaynav::Geodetic { alt_m, ..origin }),
-                    velocity_ned_m_s: Vector3::zeros(),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
+                let fix = |t_us, alt_m| {
+                    gps_fix(
+                        t_us,
+                        GpsPosition::Geodetic(delaynav::Geodetic { alt_m, ..origin }),
+                        Vector3::zeros(),
+                    )
                 };
                 assert_eq!(
                     ekf.push_gps(&fix(95_000, 580.0)).unwrap(),
