@@ -91,6 +91,11 @@ impl<T: Scalar> BoundedMean<T> {
     }
 }
 
+/// Counts one refusal (saturating: a counter never panics).
+fn bump(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
+
 /// Keeps the quaternion's covariance in the tangent space of the unit
 /// sphere at `q` (unit): `P <- T P T^T` with `T = blockdiag(I - q q^T, I)`.
 ///
@@ -348,25 +353,25 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// mean of the samples at both ends (trapezoidal; equal to a zero-order
     /// hold when the inputs are constant).
     pub(crate) fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
-        let s = checked_imu(imu).inspect_err(|_| self.refusals.imu_non_finite += 1)?;
+        let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
         let max_w = self.config.max_gyro_rad_s;
         let max_f = self.config.max_accel_m_s2;
         if s.gyro_rad_s.iter().any(|v| v.abs() > max_w) {
-            self.refusals.imu_out_of_range += 1;
+            bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu.gyro",
                 reason: "above the configured max_gyro_rad_s",
             });
         }
         if s.accel_m_s2.iter().any(|v| v.abs() > max_f) {
-            self.refusals.imu_out_of_range += 1;
+            bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu.accel",
                 reason: "above the configured max_accel_m_s2",
             });
         }
         check_time("imu", self.imu_clock_us, s.t_us)
-            .inspect_err(|_| self.refusals.imu_time += 1)?;
+            .inspect_err(|_| bump(&mut self.refusals.imu_time))?;
         let Some(clock) = self.imu_clock_us else {
             self.imu_clock_us = Some(s.t_us);
             self.last_imu = Some(s);
@@ -394,7 +399,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             }
             self.imu_clock_us = Some(s.t_us);
             self.last_imu = Some(s);
-            self.refusals.imu_step_too_long += 1;
+            bump(&mut self.refusals.imu_step_too_long);
             return Err(Error::StepTooLong {
                 dt_us,
                 max_us: self.config.max_imu_step_us,
@@ -421,7 +426,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
         project_quaternion_covariance(&mut p, &x);
         if !(all_finite(&x) && all_finite(&p)) {
-            self.refusals.imu_out_of_range += 1;
+            bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu",
                 reason: "the step would make the state non-finite",
@@ -440,9 +445,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &mut self,
         gps: &G,
     ) -> Result<GpsStep<T>, Error> {
-        let fix = checked_gps(gps).inspect_err(|_| self.refusals.gps_invalid += 1)?;
+        let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
         check_time("gps", self.gps_clock_us, fix.t_us)
-            .inspect_err(|_| self.refusals.gps_time += 1)?;
+            .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
         let (frame, position) = match fix.position {
             GpsPosition::Ned(p) => (self.frame, p),
             GpsPosition::Geodetic(g) => {
@@ -451,7 +456,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             }
         };
         if !all_finite(&position) {
-            self.refusals.gps_invalid += 1;
+            bump(&mut self.refusals.gps_invalid);
             return Err(Error::NonFinite {
                 field: "gps.position",
             });
@@ -560,7 +565,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             t_us,
             measurement,
         )
-        .inspect_err(|_| self.refusals.not_positive_definite += 1)?;
+        .inspect_err(|_| bump(&mut self.refusals.not_positive_definite))?;
         if record.fused {
             let norm = quaternion_of(&self.x).norm();
             if norm > T::lit(0.5) && norm < T::lit(2.0) {
@@ -583,10 +588,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         velocity: FusionRecord<T, 3>,
     ) {
         if !position.fused {
-            self.refusals.gps_position_rejected += 1;
+            bump(&mut self.refusals.gps_position_rejected);
         }
         if !velocity.fused {
-            self.refusals.gps_velocity_rejected += 1;
+            bump(&mut self.refusals.gps_velocity_rejected);
         }
         self.last_gps = Some((position, velocity));
     }
@@ -597,9 +602,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &mut self,
         mag: &M,
     ) -> Result<MagOutcome<T>, Error> {
-        let m = checked_mag(mag).inspect_err(|_| self.refusals.mag_invalid += 1)?;
+        let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         check_time("mag", self.mag_clock_us, m.t_us)
-            .inspect_err(|_| self.refusals.mag_time += 1)?;
+            .inspect_err(|_| bump(&mut self.refusals.mag_time))?;
         if !self.initialized {
             self.mag_clock_us = Some(m.t_us);
             self.mag_mean
@@ -620,7 +625,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let record = self.fuse(m.t_us, &(z - hx), &Self::widen(&h16), &r, gate, "mag")?;
         self.mag_clock_us = Some(m.t_us);
         if !record.fused {
-            self.refusals.mag_rejected += 1;
+            bump(&mut self.refusals.mag_rejected);
         }
         self.last_mag = Some(record);
         Ok(MagOutcome::Fused(record))
