@@ -650,3 +650,81 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The core with an extra state, as the augmented baseline uses it.
+    use super::*;
+    use crate::sensors::{Gps, Imu};
+
+    const EXTRA: ExtraState<f64> = ExtraState {
+        initial: 0.2,
+        initial_variance: 0.01,
+        random_walk_intensity: 1e-4,
+    };
+
+    fn feed<const N: usize>(core: &mut NavCore<f64, N>) {
+        for k in 0..20u64 {
+            let imu = Imu {
+                t_us: k * 10_000,
+                gyro_rad_s: Vector3::new(0.01, -0.02, 0.05),
+                accel_m_s2: Vector3::new(0.3, 0.1, -9.7),
+            };
+            core.push_imu(&imu).unwrap();
+            if k == 5 || k == 15 {
+                let gps = Gps {
+                    t_us: k * 10_000,
+                    position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+                    velocity_ned_m_s: Vector3::new(0.5, 0.0, 0.0),
+                    horizontal_accuracy_m: None,
+                    vertical_accuracy_m: None,
+                    speed_accuracy_m_s: None,
+                };
+                if let GpsStep::Measure(m) = core.begin_gps(&gps).unwrap() {
+                    let x16 = core.nav_state();
+                    let (h, jac) = measurement::gps_position(&x16, &Vector3::zeros());
+                    let gate = core.config().gps_position_gate;
+                    let rec = core
+                        .fuse(
+                            m.t_us,
+                            &(m.position_ned_m - h),
+                            &NavCore::<f64, N>::widen(&jac),
+                            &m.position_noise,
+                            gate,
+                            "gps.position",
+                        )
+                        .unwrap();
+                    assert!(rec.fused);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_extra_random_walk_state_rides_along_without_touching_the_navigation_states() {
+        let config = Ekf16Config::<f64>::default();
+        assert!(NavCore::<f64, 17>::new(config, &[]).is_err());
+        let mut plain = NavCore::<f64, 16>::new(config, &[]).unwrap();
+        let mut augmented = NavCore::<f64, 17>::new(config, &[EXTRA]).unwrap();
+        feed(&mut plain);
+        feed(&mut augmented);
+        // The extra state is uncorrelated and unobserved: the navigation
+        // states and their covariance are those of the plain filter...
+        assert_eq!(augmented.nav_state(), plain.nav_state());
+        let p16 = augmented
+            .covariance()
+            .fixed_view::<16, 16>(0, 0)
+            .into_owned();
+        assert!((p16 - plain.covariance()).amax() < 1e-15);
+        // ...and the extra state kept its value while its variance grew by
+        // the random-walk intensity over the 0.14 s since initialization.
+        assert_eq!(augmented.state()[16], EXTRA.initial);
+        let grown = EXTRA.initial_variance + EXTRA.random_walk_intensity * 0.14;
+        assert!((augmented.covariance()[(16, 16)] - grown).abs() < 1e-15);
+        assert_eq!(augmented.covariance().row(16).columns(0, 16).amax(), 0.0);
+        assert_eq!(
+            augmented.estimate().unwrap().covariance_diagonal,
+            plain.estimate().unwrap().covariance_diagonal
+        );
+    }
+}
