@@ -590,17 +590,32 @@ macro_rules! ekf16_tests {
                         first_gps_s: 2.0,
                     };
                     let mut ekf = Ekf16::<T>::new(config()).unwrap();
-                    let (mut sum_r, mut sum_v, mut n) = (0.0, 0.0, 0.0);
+                    let (mut sum_r, mut sum_v, mut sum_nees, mut n) = (0.0, 0.0, 0.0, 0.0);
                     fly(&mut ekf, &s, |ekf, tr| {
                         if let Some(e) = ekf.estimate() {
                             if e.t_us >= 40_000_000 {
-                                sum_r += (to_f64(&e.position_ned_m) - tr.r).norm_squared();
-                                sum_v += (to_f64(&e.velocity_ned_m_s) - tr.v).norm_squared();
+                                let dr = to_f64(&e.position_ned_m) - tr.r;
+                                let dv = to_f64(&e.velocity_ned_m_s) - tr.v;
+                                sum_r += dr.norm_squared();
+                                sum_v += dv.norm_squared();
+                                let d = SVector::<f64, 6>::from_iterator(
+                                    dr.iter().chain(dv.iter()).copied(),
+                                );
+                                let p = ekf
+                                    .covariance()
+                                    .fixed_view::<6, 6>(POS, POS)
+                                    .map(|x| x.as_f64());
+                                sum_nees += d.dot(&p.cholesky().unwrap().solve(&d));
                                 n += 1.0;
                             }
                         }
                     });
                     let (rms_r, rms_v) = ((sum_r / n).sqrt(), (sum_v / n).sqrt());
+                    // The filter is honest about position and velocity: the mean
+                    // normalized estimation error squared of the 6 states is near 6.
+                    // (About 20 s of strongly correlated samples: a wide band.)
+                    let nees = sum_nees / n;
+                    assert!(nees > 2.0 && nees < 15.0, "{rate} Hz: mean NEES {nees}");
                     // GPS alone: 2 m and 0.32 m/s per axis (3.5 m, 0.55 m/s in 3-D).
                     assert!(rms_r < 1.5, "{rate} Hz: position RMS {rms_r}");
                     assert!(rms_v < 0.15, "{rate} Hz: velocity RMS {rms_v}");
