@@ -936,3 +936,133 @@ fn inclination_at_rest_of_a_known_field() {
     let got = delaynav::replay::inclination_at_rest::<f64>(events, 1_000_000).unwrap();
     assert_relative_eq!(got, i, epsilon = 1e-12);
 }
+
+// ---------------------------------------------------------------------------
+// Every estimator through log171's flight window (75-225 s).
+
+/// Replays the log of `files` through one estimator.
+fn run_on<N: delaynav::Navigator<f64>>(
+    mut nav: N,
+    files: &LogFiles,
+    reader: &ReaderOptions,
+    options: &delaynav::replay::RunOptions,
+) -> delaynav::replay::RunSummary {
+    let events = LogReader::open(files, reader).unwrap();
+    let reference = ReferenceReader::open(files).unwrap();
+    delaynav::replay::replay(&mut nav, events, reference, options, |_| {})
+}
+
+/// Every estimator of the crate, configured for log171 (its declination and
+/// measured inclination), replayed with `options`. A new estimator is one
+/// more entry.
+fn run_every_estimator(
+    dir: &Path,
+    reader: &ReaderOptions,
+    options: &delaynav::replay::RunOptions,
+) -> Vec<(&'static str, delaynav::replay::RunSummary)> {
+    let files = LogFiles::locate(&[dir], None, reader).unwrap();
+    let at_rest = LogReader::<f64>::open(&files, reader).unwrap();
+    let inclination = delaynav::replay::inclination_at_rest(at_rest, 10_000_000).unwrap();
+    let declination = options.estimator_declination_rad;
+    let ekf16 = delaynav::Ekf16Config {
+        mag_inclination_rad: inclination,
+        mag_declination_rad: declination,
+        ..delaynav::Ekf16Config::default()
+    };
+    vec![(
+        "ekf16",
+        run_on(
+            delaynav::Ekf16::new(ekf16).unwrap(),
+            &files,
+            reader,
+            options,
+        ),
+    )]
+}
+
+fn flight_window() -> delaynav::replay::RunOptions {
+    let alignment = ardupilot::LOG171_ALIGNMENT;
+    delaynav::replay::RunOptions {
+        start_us: Some(75_000_000),
+        end_us: Some(225_000_000),
+        alignment,
+        estimator_declination_rad: alignment.declination_rad,
+        ..delaynav::replay::RunOptions::default()
+    }
+}
+
+#[test]
+fn every_estimator_replays_the_flight_window_cleanly() {
+    let Some(dir) = log171() else { return };
+    let (header, rows) = raw_rows(&dir.join("imu.csv"));
+    let t = column(&header, "t_s");
+    let in_window = rows
+        .iter()
+        .filter(|r| (75.0..=225.0).contains(&r[t].parse::<f64>().unwrap()))
+        .count() as u64;
+    for (name, s) in run_every_estimator(&dir, &ReaderOptions::default(), &flight_window()) {
+        println!(
+            "{name}: refused {:?}, gps fused pos/vel {}/{} gated {}, rms {:?}, final delay {:?}",
+            s.refused,
+            s.gps_position_fused,
+            s.gps_velocity_fused,
+            s.gps_gated,
+            s.reference_rms,
+            s.final_delay_s
+        );
+        assert_eq!(s.samples_refused(), 0, "{name} refused {:?}", s.refused);
+        assert_eq!(
+            s.non_finite_estimates, 0,
+            "{name} produced a non-finite estimate"
+        );
+        assert_eq!(s.imu_pushed, in_window, "{name}");
+        assert!(s.gps_pushed > 600 && s.mag_pushed > 1400, "{name}: {s:?}");
+        assert!(
+            s.last_estimate_t_us.unwrap() > 224_900_000,
+            "{name} stopped estimating"
+        );
+        let rms = s.reference_rms.expect("log171 has a reference");
+        assert!(rms.samples > 1400, "{name}: {rms:?}");
+        assert!(
+            rms.roll_deg.is_finite()
+                && rms.yaw_deg.is_finite()
+                && rms.velocity_m_s.unwrap().is_finite()
+        );
+    }
+}
+
+#[test]
+fn added_gps_delay_experiment() {
+    // The paper's Table 7 on log171: 0.3 s added to every GPS receive time.
+    // An estimator with a delay estimate must see it grow by about 0.3 s;
+    // one without must get worse (it fuses fixes 0.3 s staler).
+    let Some(dir) = log171() else { return };
+    let plain = run_every_estimator(&dir, &ReaderOptions::default(), &flight_window());
+    let added = ReaderOptions {
+        gps_delay_added_us: 300_000,
+        ..ReaderOptions::default()
+    };
+    let delayed = run_every_estimator(&dir, &added, &flight_window());
+    for ((name, a), (_, b)) in plain.iter().zip(&delayed) {
+        assert_eq!(b.samples_refused(), 0, "{name} refused {:?}", b.refused);
+        assert_eq!(b.non_finite_estimates, 0, "{name}");
+        let (ra, rb) = (a.reference_rms.unwrap(), b.reference_rms.unwrap());
+        println!(
+            "{name}: delay {:?} -> {:?}, rms {ra:?} -> {rb:?}",
+            a.final_delay_s, b.final_delay_s
+        );
+        match (a.final_delay_s, b.final_delay_s) {
+            (Some(da), Some(db)) => {
+                let change = db - da;
+                assert!(
+                    (0.15..0.45).contains(&change),
+                    "{name}: delay change {change} s for 0.3 s added"
+                );
+            }
+            _ => assert!(
+                rb.roll_deg.hypot(rb.pitch_deg) > ra.roll_deg.hypot(ra.pitch_deg),
+                "{name}: tilt error did not grow with 0.3 s more GPS delay: {ra:?} -> {rb:?}"
+            ),
+        }
+    }
+}
