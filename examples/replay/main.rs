@@ -300,8 +300,14 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
 }
 
-fn main() -> Result<(), Failure> {
-    let args = Args::parse();
+fn main() {
+    if let Err(e) = run(Args::parse()) {
+        eprintln!("replay: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(args: Args) -> Result<(), Failure> {
     if args.inputs.is_empty() {
         eprintln!(
             "replay: no log given, and this build has no simulator to replay instead.\n\
