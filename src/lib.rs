@@ -22,12 +22,14 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod delay;
 pub mod error;
 pub mod estimate;
 pub mod geo;
 pub mod scalar;
 pub mod sensors;
 
+pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 pub use scalar::Scalar;

@@ -1,0 +1,188 @@
+//! From raw streams to the uniform correlation grid (sec. 2.2.2, eq. 14).
+//!
+//! The correlation runs on a uniform grid of period `Tc` (integer
+//! microseconds): grid index `j` is the time `j Tc` on the IMU clock.
+//!
+//! - IMU side: the NED acceleration samples are averaged per grid bin
+//!   (`[j Tc - Tc/2, j Tc + Tc/2)`); each bin mean is placed at the mean
+//!   timestamp of its samples (exact for a locally linear signal, so a 50 Hz
+//!   stream with +-2 ms jitter is not biased by where its samples fall in the
+//!   bins), and the bin means are linearly interpolated onto the grid times.
+//!   At 1 kHz the bin mean is a 20-sample box filter (anti-aliasing); at
+//!   50 Hz it is a plain linear resampling.
+//! - GPS side (eq. 14): `a_gps = (v_k - v_{k-n}) / (t_k - t_{k-n})` with the
+//!   fixes' own receive timestamps. It is the mean acceleration over the span,
+//!   so it is placed at the middle of the span, `(t_k + t_{k-n}) / 2`: this is
+//!   how the lag `n dt / 2` of the difference is accounted for, exactly and
+//!   with the real (jittered) fix times. The points are linearly interpolated
+//!   onto the grid.
+//! - Both grid streams then pass through the same smoothing filter (two
+//!   cascaded first-order low-passes, cutoff `fc`). Filtering both signals with
+//!   the same `h` turns their cross-correlation into `(h * h~) * R_xy`, and
+//!   `h * h~` is symmetric: the filter's lag cancels and the peak does not move.
+//!
+//! Every step is `O(1)` per input sample; a grid sample is emitted once both
+//! of its neighbours are known.
+
+use nalgebra::Vector3;
+
+use super::ring::Ring;
+use crate::scalar::Scalar;
+
+/// Longest GPS differencing span `n` supported.
+pub const MAX_GPS_DIFF_SPAN: usize = 8;
+
+/// Linear interpolation of irregular points onto the grid `j Tc`.
+#[derive(Debug, Clone)]
+struct GridResampler<T: Scalar> {
+    previous: Option<(u64, Vector3<T>)>,
+    next_index: u64,
+}
+
+impl<T: Scalar> GridResampler<T> {
+    fn new() -> Self {
+        Self {
+            previous: None,
+            next_index: 0,
+        }
+    }
+
+    /// Adds a point at `t_us` (strictly after the previous one) and emits
+    /// every grid sample between the previous point and this one.
+    fn push(&mut self, period_us: u64, t_us: u64, v: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+        match self.previous {
+            Some((tp, vp)) if t_us > tp => {
+                let span = T::lit((t_us - tp) as f64);
+                while self.next_index * period_us < t_us {
+                    let tj = self.next_index * period_us;
+                    let frac = T::lit((tj - tp) as f64) / span;
+                    emit(self.next_index, vp + (v - vp) * frac);
+                    self.next_index += 1;
+                }
+            }
+            Some(_) => return,
+            None => self.next_index = t_us.div_ceil(period_us),
+        }
+        self.previous = Some((t_us, v));
+    }
+}
+
+/// Two cascaded first-order low-passes: `s1 += a (x - s1)`, `s2 += a (s1 - s2)`,
+/// `a = 1 - exp(-2 pi fc Tc)`; primed with the first sample.
+#[derive(Debug, Clone)]
+struct Smoother<T: Scalar> {
+    alpha: T,
+    stages: Option<(Vector3<T>, Vector3<T>)>,
+}
+
+impl<T: Scalar> Smoother<T> {
+    fn new(cutoff_hz: T, period_s: T) -> Self {
+        Self {
+            alpha: T::one() - (-T::two_pi() * cutoff_hz * period_s).exp(),
+            stages: None,
+        }
+    }
+
+    fn apply(&mut self, x: Vector3<T>) -> Vector3<T> {
+        let (mut s1, mut s2) = self.stages.unwrap_or((x, x));
+        s1 += (x - s1) * self.alpha;
+        s2 += (s1 - s2) * self.alpha;
+        self.stages = Some((s1, s2));
+        s2
+    }
+}
+
+/// IMU side: bin means at their mean time, resampled and smoothed.
+#[derive(Debug, Clone)]
+pub(crate) struct ImuToGrid<T: Scalar> {
+    period_us: u64,
+    /// Open bin: index, sum of values, sum of time offsets from the bin centre (us), count.
+    bin: Option<(u64, Vector3<T>, i64, i64)>,
+    resampler: GridResampler<T>,
+    smoother: Smoother<T>,
+}
+
+impl<T: Scalar> ImuToGrid<T> {
+    pub(crate) fn new(period_us: u64, cutoff_hz: T) -> Self {
+        Self {
+            period_us,
+            bin: None,
+            resampler: GridResampler::new(),
+            smoother: Smoother::new(cutoff_hz, T::lit(period_us as f64 * 1e-6)),
+        }
+    }
+
+    /// Forgets the stream (after a gap); the configuration stays.
+    pub(crate) fn reset(&mut self) {
+        self.bin = None;
+        self.resampler = GridResampler::new();
+        self.smoother.stages = None;
+    }
+
+    /// Adds one sample; emits smoothed grid samples `(j, x_j)`.
+    pub(crate) fn push(&mut self, t_us: u64, a: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+        let p = self.period_us;
+        let index = (t_us + p / 2) / p;
+        let offset = t_us as i64 - (index * p) as i64;
+        match &mut self.bin {
+            Some((b, sum, off, n)) if *b == index => {
+                *sum += a;
+                *off += offset;
+                *n += 1;
+            }
+            open => {
+                if let Some((b, sum, off, n)) = open.take() {
+                    let mean_t = (b * p) as i64 + (2 * off + n).div_euclid(2 * n);
+                    let mean = sum / T::lit(n as f64);
+                    let smoother = &mut self.smoother;
+                    self.resampler
+                        .push(p, mean_t.max(0) as u64, mean, &mut |j, x| emit(j, smoother.apply(x)));
+                }
+                *open = Some((index, a, offset, 1));
+            }
+        }
+    }
+}
+
+/// GPS side: velocity differences over `n` fixes at the span's midpoint,
+/// resampled and smoothed.
+#[derive(Debug, Clone)]
+pub(crate) struct GpsToGrid<T: Scalar> {
+    period_us: u64,
+    span: usize,
+    fixes: Ring<(u64, Vector3<T>), { MAX_GPS_DIFF_SPAN + 1 }>,
+    resampler: GridResampler<T>,
+    smoother: Smoother<T>,
+}
+
+impl<T: Scalar> GpsToGrid<T> {
+    pub(crate) fn new(period_us: u64, span: usize, cutoff_hz: T) -> Self {
+        Self {
+            period_us,
+            span: span.clamp(1, MAX_GPS_DIFF_SPAN),
+            fixes: Ring::new((0, Vector3::zeros())),
+            resampler: GridResampler::new(),
+            smoother: Smoother::new(cutoff_hz, T::lit(period_us as f64 * 1e-6)),
+        }
+    }
+
+    /// Forgets the stream (after a gap); the configuration stays.
+    pub(crate) fn reset(&mut self) {
+        self.fixes.clear();
+        self.resampler = GridResampler::new();
+        self.smoother.stages = None;
+    }
+
+    /// Adds one fix (time strictly increasing); emits smoothed grid samples.
+    pub(crate) fn push(&mut self, t_us: u64, v: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+        self.fixes.push((t_us, v));
+        if let Some((t_old, v_old)) = self.fixes.get(self.span) {
+            let dt_s = T::lit((t_us - t_old) as f64 * 1e-6);
+            let accel = (v - v_old) / dt_s;
+            let mid = t_old + (t_us - t_old) / 2;
+            let smoother = &mut self.smoother;
+            self.resampler
+                .push(self.period_us, mid, accel, &mut |j, x| emit(j, smoother.apply(x)));
+        }
+    }
+}
