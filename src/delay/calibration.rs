@@ -33,7 +33,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::gain_fusion::AXES;
-use super::grid::{GpsToGrid, ImuToGrid, MAX_GPS_DIFF_SPAN};
+use super::grid::{GpsToGrid, ImuToGrid, MAX_GPS_DIFF_SPAN, grid_period_us, grid_samples, lead_samples};
 use super::ring::Ring;
 use crate::error::Error;
 use crate::geo::{quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix};
@@ -247,18 +247,15 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
     /// and `HIST`.
     pub fn new(config: CalibrationConfig<T>) -> Result<Self, Error> {
         config.validate()?;
-        let rate = config.correlation_rate_hz.as_f64();
-        let period_us = (1e6 / rate).round() as u64;
-        let max_shift = (config.max_shift_s.as_f64() * 1e6 / period_us as f64).round() as usize;
+        let period_us = grid_period_us(config.correlation_rate_hz);
+        let max_shift = grid_samples(config.max_shift_s, period_us);
         if 2 * max_shift + 1 > SHIFTS {
             return Err(Error::InvalidConfig {
                 field: "max_shift_s",
                 reason: "2 S + 1 shifts exceed the capacity SHIFTS",
             });
         }
-        let lead = ((config.gps_diff_span as f64 / 2.0 + 1.0) * config.max_gap_s.as_f64() * 1e6 / period_us as f64)
-            .ceil() as usize
-            + 2;
+        let lead = lead_samples(config.gps_diff_span, config.max_gap_s, config.max_gap_s, period_us);
         if max_shift + lead >= HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",

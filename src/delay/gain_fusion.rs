@@ -19,9 +19,9 @@
 //! of a Kalman filter fusing the average of the `m` measurements (variance
 //! `R / m`), and `P` is its Joseph-form posterior.
 //!
-//! Units: the configuration states `Q_f` and `R_i` in **milliseconds
-//! squared** (equivalently, squared samples of the paper's 1 kHz IMU, the
-//! rate its correlation ran at); the state is kept in seconds. The
+//! Units: the state is in seconds and seconds squared; `Q_f` and `R_i` are
+//! given per iteration, in s^2, by the caller ([`DelayLoop`](super::DelayLoop)
+//! derives them from its rate-independent configuration, see there). The
 //! estimate is clamped to the configured range `[min, max]`, and `P` is
 //! capped at the variance of a uniform distribution over that range, so a
 //! long hover cannot make it grow without bound.
@@ -36,10 +36,6 @@ pub const AXES: usize = 3;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct GainFusionConfig<T: Scalar> {
-    /// Process noise `Q_f` added per iteration, ms^2.
-    pub process_noise_ms2: T,
-    /// Measurement noise `R_i` per NED axis, ms^2.
-    pub measurement_noise_ms2: [T; AXES],
     /// Gain weight `gamma` (1/3: the three axes weigh the same).
     pub gamma: T,
     /// Smallest delay, s.
@@ -55,8 +51,6 @@ pub struct GainFusionConfig<T: Scalar> {
 impl<T: Scalar> Default for GainFusionConfig<T> {
     fn default() -> Self {
         Self {
-            process_noise_ms2: T::lit(0.1),
-            measurement_noise_ms2: [T::lit(100.0); AXES],
             gamma: T::lit(1.0 / 3.0),
             delay_min_s: T::zero(),
             delay_max_s: T::one(),
@@ -74,12 +68,6 @@ impl<T: Scalar> GainFusionConfig<T> {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
-        if !(self.process_noise_ms2.is_finite() && self.process_noise_ms2 >= T::zero()) {
-            return bad("gfa.process_noise_ms2", "must be finite and >= 0");
-        }
-        if !self.measurement_noise_ms2.iter().all(|r| positive_finite(*r)) {
-            return bad("gfa.measurement_noise_ms2", "must be positive and finite");
-        }
         if !(positive_finite(self.gamma) && self.gamma <= T::one()) {
             return bad("gfa.gamma", "must be in (0, 1]");
         }
@@ -117,8 +105,6 @@ pub struct GainFusion<T: Scalar> {
     delay_s: T,
     variance_s2: T,
 }
-
-const MS2_TO_S2: f64 = 1e-6;
 
 impl<T: Scalar> GainFusion<T> {
     /// A validated fusion at the configured initial delay.
@@ -170,17 +156,32 @@ impl<T: Scalar> GainFusion<T> {
         Ok(())
     }
 
-    /// One iteration (module docs) with measurements `z_s` (s) and validities.
-    /// A non-finite valid measurement is refused, state unchanged.
-    pub fn step(&mut self, z_s: [T; AXES], valid: [bool; AXES]) -> Result<GainFusionStep<T>, Error> {
+    /// One iteration (module docs) with measurements `z_s` (s), validities
+    /// `V_i`, process noise `Q_f` (s^2) and measurement variances `R_i`
+    /// (s^2). Refused, state unchanged: a non-finite valid measurement, a
+    /// negative or non-finite `Q_f`, a non-positive or non-finite `R_i`.
+    pub fn step(
+        &mut self,
+        z_s: [T; AXES],
+        valid: [bool; AXES],
+        process_noise_s2: T,
+        measurement_noise_s2: [T; AXES],
+    ) -> Result<GainFusionStep<T>, Error> {
         if z_s.iter().zip(valid).any(|(z, v)| v && !z.is_finite()) {
             return Err(Error::NonFinite {
                 field: "gfa.measurement",
             });
         }
-        let to_s2 = T::lit(MS2_TO_S2);
+        if !(process_noise_s2.is_finite() && process_noise_s2 >= T::zero())
+            || !measurement_noise_s2.iter().all(|r| positive_finite(*r))
+        {
+            return Err(Error::OutOfRange {
+                field: "gfa.noise",
+                reason: "Q_f must be finite and >= 0, R_i positive and finite",
+            });
+        }
         let tau_bar = self.delay_s;
-        let p_bar = (self.variance_s2 + self.config.process_noise_ms2 * to_s2).min(self.variance_cap());
+        let p_bar = (self.variance_s2 + process_noise_s2).min(self.variance_cap());
         let gamma = self.config.gamma;
         let mut gains = [T::zero(); AXES];
         let mut innovations_s = [T::zero(); AXES];
@@ -188,7 +189,7 @@ impl<T: Scalar> GainFusion<T> {
         let mut gain_sum = T::zero();
         let mut noise_terms = T::zero();
         for axis in 0..AXES {
-            let r = self.config.measurement_noise_ms2[axis] * to_s2;
+            let r = measurement_noise_s2[axis];
             let k = gamma * p_bar / (p_bar + gamma * r);
             gains[axis] = k;
             if valid[axis] {

@@ -186,3 +186,23 @@ impl<T: Scalar> GpsToGrid<T> {
         }
     }
 }
+
+/// Grid period in whole microseconds for a rate in Hz (rounded).
+pub(crate) fn grid_period_us<T: Scalar>(rate_hz: T) -> u64 {
+    ((1e6 / rate_hz.as_f64()) + 0.5) as u64
+}
+
+/// A duration `>= 0` in grid samples, rounded to nearest.
+pub(crate) fn grid_samples<T: Scalar>(seconds: T, period_us: u64) -> usize {
+    (seconds.as_f64() * 1e6 / period_us as f64 + 0.5) as usize
+}
+
+/// How far, in grid samples, the IMU grid stream can run ahead of the GPS
+/// one: the GPS difference is placed `n/2` fix gaps back and a grid sample
+/// needs the next point, so up to `(n/2 + 1)` of the longest GPS gap, plus
+/// the IMU gap and two samples of resampling.
+pub(crate) fn lead_samples<T: Scalar>(gps_diff_span: usize, max_gps_gap_s: T, max_imu_gap_s: T, period_us: u64) -> usize {
+    let lead_s = (gps_diff_span as f64 / 2.0 + 1.0) * max_gps_gap_s.as_f64() + max_imu_gap_s.as_f64();
+    let samples = lead_s * 1e6 / period_us as f64;
+    samples as usize + 3
+}

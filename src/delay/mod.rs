@@ -81,7 +81,7 @@ use nalgebra::Vector3;
 use crate::error::Error;
 use crate::scalar::{Scalar, all_finite};
 use crate::sensors::{GpsFix, check_time};
-use grid::{GpsToGrid, ImuToGrid};
+use grid::{GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples};
 
 /// Per-sensor pure delays of eq. (15), seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,6 +108,28 @@ impl<T: Scalar> SensorDelays<T> {
 }
 
 /// Configuration of the [`DelayLoop`].
+///
+/// # Noise units
+///
+/// The GFA (Table 2) needs a process noise `Q_f` and measurement variances
+/// `R_i` per iteration. Per iteration values would change meaning with the
+/// GPS rate and with `fixes_per_update`, and successive peaks are far from
+/// independent (at 10 Hz, 50 successive measurements share most of a 5 s
+/// buffer). The configuration therefore states:
+///
+/// - `process_noise_ms2_per_s` = `q`: the delay's random-walk intensity,
+///   ms^2 per second; per iteration `Q_f = q dt`, `dt` the time since the
+///   previous iteration;
+/// - `measurement_noise_ms2` = `R_i`: the variance of one axis' peak from one
+///   *independent* buffer, ms^2; per iteration `R_i (T_buffer / dt)`, which
+///   spreads one buffer's information over the iterations that share it.
+///
+/// In continuous time the loop is then a Kalman-Bucy filter with measurement
+/// density `r_c = R T_buffer / 3` (three axes) and steady-state time constant
+/// `T = sqrt(r_c / q)`; the defaults (`R = 1600 ms^2` at 3 m/s^2 rms motion,
+/// `q = 4.2 ms^2/s`) give `T = 25 s` at that motion whatever the rates, and
+/// shorter with stronger motion (`R_i` scales with
+/// [`reference_accel_variance_m2_s4`](Self::reference_accel_variance_m2_s4)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DelayLoopConfig<T: Scalar> {
@@ -130,6 +152,24 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub max_imu_gap_s: T,
     /// Longest GPS gap, s; a longer one restarts the correlation buffer.
     pub max_gps_gap_s: T,
+    /// Delay random-walk intensity `q`, ms^2/s (see the type docs).
+    pub process_noise_ms2_per_s: T,
+    /// Variance `R_i` of one axis' peak over one independent buffer, ms^2
+    /// (north, east, down).
+    pub measurement_noise_ms2: [T; AXES],
+    /// Reference motion for `measurement_noise_ms2`, (m/s^2)^2: an axis whose
+    /// IMU acceleration variance over the buffer is `v` uses
+    /// `R_i * reference / v`, since the peak's scatter falls as the motion
+    /// grows (the delay's Cramer-Rao bound scales as `sigma_v^2 / sum a^2`).
+    /// 0 disables the scaling.
+    pub reference_accel_variance_m2_s4: T,
+    /// Re-acquisition threshold, in standard deviations `sqrt(P + R_i)`: when
+    /// at least two axes are valid and all of them disagree with the estimate
+    /// beyond it, on the same side, for `reacquire_after_s`, the estimate
+    /// restarts from their mean. 0 disables.
+    pub reacquire_sigma: T,
+    /// How long the disagreement must last before re-acquiring, s.
+    pub reacquire_after_s: T,
     /// Gain fusion, delay range (= the shift window) and initial delay.
     pub fusion: GainFusionConfig<T>,
 }
@@ -146,6 +186,11 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             fixes_per_update: 1,
             max_imu_gap_s: T::lit(0.1),
             max_gps_gap_s: T::lit(0.5),
+            process_noise_ms2_per_s: T::lit(4.2),
+            measurement_noise_ms2: [T::lit(1600.0); AXES],
+            reference_accel_variance_m2_s4: T::lit(9.0),
+            reacquire_sigma: T::lit(3.0),
+            reacquire_after_s: T::lit(2.0),
             fusion: GainFusionConfig::default(),
         }
     }
@@ -195,22 +240,31 @@ impl<T: Scalar> DelayLoopConfig<T> {
         if !positive(self.max_imu_gap_s) || !positive(self.max_gps_gap_s) {
             return bad("max_gap_s", "must be positive and finite");
         }
+        if !(self.process_noise_ms2_per_s.is_finite() && self.process_noise_ms2_per_s >= T::zero()) {
+            return bad("process_noise_ms2_per_s", "must be finite and >= 0");
+        }
+        if !self.measurement_noise_ms2.iter().all(|r| positive(*r)) {
+            return bad("measurement_noise_ms2", "must be positive and finite");
+        }
+        if !(self.reference_accel_variance_m2_s4.is_finite() && self.reference_accel_variance_m2_s4 >= T::zero()) {
+            return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
+        }
+        if !(self.reacquire_sigma.is_finite() && self.reacquire_sigma >= T::zero()) || !positive(self.reacquire_after_s) {
+            return bad("reacquire", "sigma must be finite and >= 0, duration positive");
+        }
         self.fusion.validate()?;
         if self.fusion.delay_min_s < T::zero() {
             return bad("fusion.delay_min_s", "the shift window starts at a delay >= 0");
         }
-        let rate = self.correlation_rate_hz.as_f64();
-        let period_us = (1e6 / rate).round() as u64;
-        let samples = |s: T| (s.as_f64() * 1e6 / period_us as f64).round() as usize;
-        let shift_min = samples(self.fusion.delay_min_s);
-        let shift_max = samples(self.fusion.delay_max_s);
-        let lead_s = (self.gps_diff_span as f64 / 2.0 + 1.0) * self.max_gps_gap_s.as_f64() + self.max_imu_gap_s.as_f64();
+        let period_us = grid_period_us(self.correlation_rate_hz);
+        let shift_min = grid_samples(self.fusion.delay_min_s, period_us);
+        let shift_max = grid_samples(self.fusion.delay_max_s, period_us);
         Ok(GridSizes {
             period_us,
-            buffer_len: samples(self.buffer_s),
+            buffer_len: grid_samples(self.buffer_s, period_us),
             shift_min,
             lags: shift_max.saturating_sub(shift_min) + 1,
-            lead: (lead_s * 1e6 / period_us as f64).ceil() as usize + 2,
+            lead: lead_samples(self.gps_diff_span, self.max_gps_gap_s, self.max_imu_gap_s, period_us),
         })
     }
 }
@@ -240,6 +294,9 @@ pub struct DelayUpdate<T: Scalar> {
     /// Its standard deviation as the GFA sees it, s (optimistic: successive
     /// correlation measurements share most of their buffer).
     pub delay_std_s: T,
+    /// True when this update re-acquired the delay (see
+    /// [`DelayLoopConfig::reacquire_sigma`]).
+    pub reacquired: bool,
     /// North, east, down.
     pub axes: [AxisUpdate<T>; AXES],
 }
@@ -263,6 +320,8 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     last_imu_us: Option<u64>,
     last_gps_us: Option<u64>,
     fixes_since_update: u32,
+    last_update_us: Option<u64>,
+    disagreeing_since_us: Option<u64>,
     restarts: u32,
 }
 
@@ -291,6 +350,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
             last_imu_us: None,
             last_gps_us: None,
             fixes_since_update: 0,
+            last_update_us: None,
+            disagreeing_since_us: None,
             restarts: 0,
         })
     }
@@ -400,11 +461,32 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
                 && p.peak >= self.config.min_peak
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4;
         }
-        let step = self.fusion.step(z, valid)?;
+        let buffer_s = self.config.buffer_s;
+        let dt_s = self
+            .last_update_us
+            .map_or(buffer_s, |last| T::lit((t_us - last) as f64 * 1e-6))
+            .min(buffer_s);
+        let ms2 = T::lit(1e-6);
+        let reference = self.config.reference_accel_variance_m2_s4;
+        let floor = self.config.min_accel_variance_m2_s4.max(T::lit(1e-6));
+        let r_buffer_s2: [T; AXES] = core::array::from_fn(|axis| {
+            let r = self.config.measurement_noise_ms2[axis] * ms2;
+            if reference > T::zero() {
+                r * reference / peaks[axis].accel_variance.max(floor)
+            } else {
+                r
+            }
+        });
+        let q_s2 = self.config.process_noise_ms2_per_s * ms2 * dt_s;
+        let r_s2 = r_buffer_s2.map(|r| r * buffer_s / dt_s);
+        let reacquired = self.reacquire(t_us, &z, &valid, &r_buffer_s2);
+        let step = self.fusion.step(z, valid, q_s2, r_s2)?;
+        self.last_update_us = Some(t_us);
         Ok(Some(DelayUpdate {
             t_us,
             delay_s: step.delay_s,
             delay_std_s: step.variance_s2.sqrt(),
+            reacquired,
             axes: core::array::from_fn(|axis| AxisUpdate {
                 valid: valid[axis],
                 measured_delay_s: z[axis],
@@ -412,6 +494,46 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
                 correlation: peaks[axis],
             }),
         }))
+    }
+
+    /// Re-acquisition (see [`DelayLoopConfig::reacquire_sigma`]): restarts the
+    /// GFA from the mean of the valid measurements when they all disagree
+    /// with the estimate, on one side, for long enough. A deviation from the
+    /// paper, whose loop has a fixed gain and follows a delay step only at the
+    /// GFA's pace.
+    fn reacquire(&mut self, t_us: u64, z: &[T; AXES], valid: &[bool; AXES], r_buffer_s2: &[T; AXES]) -> bool {
+        let k = self.config.reacquire_sigma;
+        if k <= T::zero() {
+            return false;
+        }
+        let tau = self.fusion.delay_s();
+        let p = self.fusion.variance_s2();
+        let (mut count, mut above, mut below) = (0usize, 0usize, 0usize);
+        let (mut z_sum, mut r_sum) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let innovation = z[axis] - tau;
+            let bound = k * (p + r_buffer_s2[axis]).sqrt();
+            count += 1;
+            z_sum += z[axis];
+            r_sum += r_buffer_s2[axis];
+            if innovation > bound {
+                above += 1;
+            } else if innovation < -bound {
+                below += 1;
+            }
+        }
+        if count < 2 || (above != count && below != count) {
+            self.disagreeing_since_us = None;
+            return false;
+        }
+        let since = *self.disagreeing_since_us.get_or_insert(t_us);
+        if T::lit((t_us - since) as f64 * 1e-6) < self.config.reacquire_after_s {
+            return false;
+        }
+        self.disagreeing_since_us = None;
+        let n = T::lit(count as f64);
+        // The mean of `count` measurements of variance mean(R_i): variance mean(R) / count.
+        self.fusion.reset(z_sum / n, (r_sum / (n * n)).sqrt()).is_ok()
     }
 
     /// [`DelayLoop::push_gps`] for any [`GpsFix`].
