@@ -33,10 +33,14 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::gain_fusion::AXES;
-use super::grid::{GpsToGrid, ImuToGrid, MAX_GPS_DIFF_SPAN, grid_period_us, grid_samples, lead_samples};
+use super::grid::{
+    GpsToGrid, ImuToGrid, MAX_GPS_DIFF_SPAN, grid_period_us, grid_samples, lead_samples,
+};
 use super::ring::Ring;
 use crate::error::Error;
-use crate::geo::{quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix};
+use crate::geo::{
+    quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix,
+};
 use crate::scalar::{Scalar, all_finite};
 use crate::sensors::{GpsFix, ImuSample, check_time, checked_gps, checked_imu};
 
@@ -84,7 +88,10 @@ impl<T: Scalar> CalibrationConfig<T> {
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
         let positive = |v: T| v.is_finite() && v > T::zero();
         if !positive(self.correlation_rate_hz) || self.correlation_rate_hz > T::lit(1e6) {
-            return bad("correlation_rate_hz", "must be positive, finite, at most 1 MHz");
+            return bad(
+                "correlation_rate_hz",
+                "must be positive, finite, at most 1 MHz",
+            );
         }
         if !positive(self.max_shift_s) {
             return bad("max_shift_s", "must be positive and finite");
@@ -92,8 +99,13 @@ impl<T: Scalar> CalibrationConfig<T> {
         if !(1..=MAX_GPS_DIFF_SPAN).contains(&self.gps_diff_span) {
             return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
         }
-        if !positive(self.smoothing_cutoff_hz) || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5) {
-            return bad("smoothing_cutoff_hz", "must be positive and below half the correlation rate");
+        if !positive(self.smoothing_cutoff_hz)
+            || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5)
+        {
+            return bad(
+                "smoothing_cutoff_hz",
+                "must be positive and below half the correlation rate",
+            );
         }
         if !(self.tilt_gain_per_s.is_finite() && self.tilt_gain_per_s >= T::zero()) {
             return bad("tilt_gain_per_s", "must be finite and >= 0");
@@ -169,7 +181,14 @@ impl<T: Scalar> ShiftSums<T> {
 
     fn axis_coefficient(&self, axis: usize) -> T {
         let n = T::lit(self.n.max(1) as f64);
-        pearson(n, self.xy[axis], self.x[axis], self.y[axis], self.xx[axis], self.yy[axis])
+        pearson(
+            n,
+            self.xy[axis],
+            self.x[axis],
+            self.y[axis],
+            self.xx[axis],
+            self.yy[axis],
+        )
     }
 
     fn vector_coefficient(&self) -> T {
@@ -217,7 +236,9 @@ impl<T: Scalar, const HIST: usize> GridHistory<T, HIST> {
         if j > newest {
             return None;
         }
-        usize::try_from(newest - j).ok().and_then(|age| self.ring.get(age))
+        usize::try_from(newest - j)
+            .ok()
+            .and_then(|age| self.ring.get(age))
     }
 }
 
@@ -255,7 +276,12 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
                 reason: "2 S + 1 shifts exceed the capacity SHIFTS",
             });
         }
-        let lead = lead_samples(config.gps_diff_span, config.max_gap_s, config.max_gap_s, period_us);
+        let lead = lead_samples(
+            config.gps_diff_span,
+            config.max_gap_s,
+            config.max_gap_s,
+            period_us,
+        );
         if max_shift + lead >= HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",
@@ -322,7 +348,10 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
             x_hist.push(i, x);
             // Pairs with the GPS samples already stored: shift = j - i.
             for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * s + 1) {
-                if let Some(y) = (i + k as u64).checked_sub(s as u64).and_then(|j| y_hist.at(j)) {
+                if let Some(y) = (i + k as u64)
+                    .checked_sub(s as u64)
+                    .and_then(|j| y_hist.at(j))
+                {
                     shift_sums.add(&x, &y);
                 }
             }
@@ -340,15 +369,19 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         }
         self.last_gps_us = Some(gps.t_us);
         let (x_hist, y_hist, sums, s) = (&self.x, &mut self.y, &mut self.sums, self.max_shift);
-        self.gps_grid.push(gps.t_us, gps.velocity_ned_m_s, &mut |j, y| {
-            y_hist.push(j, y);
-            // Pairs with the IMU samples already stored: i = j - shift.
-            for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * s + 1) {
-                if let Some(x) = (j + s as u64).checked_sub(k as u64).and_then(|i| x_hist.at(i)) {
-                    shift_sums.add(&x, &y);
+        self.gps_grid
+            .push(gps.t_us, gps.velocity_ned_m_s, &mut |j, y| {
+                y_hist.push(j, y);
+                // Pairs with the IMU samples already stored: i = j - shift.
+                for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * s + 1) {
+                    if let Some(x) = (j + s as u64)
+                        .checked_sub(k as u64)
+                        .and_then(|i| x_hist.at(i))
+                    {
+                        shift_sums.add(&x, &y);
+                    }
                 }
-            }
-        });
+            });
         Ok(())
     }
 
@@ -364,7 +397,11 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         }
         let (k, r) = best;
         let offset = if k > 0 && k + 1 < count {
-            parabolic_offset(coefficient(&self.sums[k - 1]), r, coefficient(&self.sums[k + 1]))
+            parabolic_offset(
+                coefficient(&self.sums[k - 1]),
+                r,
+                coefficient(&self.sums[k + 1]),
+            )
         } else {
             T::zero()
         };

@@ -157,7 +157,9 @@ pub struct SlidingCorrelator<T: Scalar, const BUF: usize, const LAGS: usize, con
     multiply_adds: u64,
 }
 
-impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> SlidingCorrelator<T, BUF, LAGS, HIST> {
+impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
+    SlidingCorrelator<T, BUF, LAGS, HIST>
+{
     /// A correlator over `buffer_len` pairs and the shifts
     /// `shift_min..shift_min + lags` (grid samples).
     ///
@@ -269,7 +271,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> SlidingC
         if age + shift_max >= self.x.len() {
             return false;
         }
-        let y_old = if full { self.y.get(self.buffer_len - 1) } else { None };
+        let y_old = if full {
+            self.y.get(self.buffer_len - 1)
+        } else {
+            None
+        };
         for lag in 0..self.lags {
             let s = self.shift_min + lag;
             let x = self.x.get(age + s).unwrap_or_else(Vector3::zeros);
@@ -355,7 +361,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> SlidingC
                 peak: r,
                 shift_samples: T::lit((self.shift_min + lag) as f64) + offset,
                 accel_variance: var,
-                gps_accel_variance: (self.y_sums.squares[axis] / n - y_mean * y_mean).max(T::zero()),
+                gps_accel_variance: (self.y_sums.squares[axis] / n - y_mean * y_mean)
+                    .max(T::zero()),
                 interior,
             };
         }

@@ -52,7 +52,10 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
                 reason: "must be positive and finite",
             });
         }
-        if !(cutoff_hz.is_finite() && cutoff_hz > T::zero() && cutoff_hz < sample_rate_hz * T::lit(0.5)) {
+        if !(cutoff_hz.is_finite()
+            && cutoff_hz > T::zero()
+            && cutoff_hz < sample_rate_hz * T::lit(0.5))
+        {
             return Err(Error::InvalidConfig {
                 field: "fir.cutoff_hz",
                 reason: "must be positive and below half the sample rate",
@@ -74,7 +77,10 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
             let window = if TAPS == 1 {
                 1.0
             } else {
-                0.54 - 0.46 * <f64 as nalgebra::ComplexField>::cos(2.0 * core::f64::consts::PI * i as f64 / (TAPS as f64 - 1.0))
+                0.54 - 0.46
+                    * <f64 as nalgebra::ComplexField>::cos(
+                        2.0 * core::f64::consts::PI * i as f64 / (TAPS as f64 - 1.0),
+                    )
             };
             *hi = 2.0 * fc * sinc * window;
             sum += *hi;

@@ -86,7 +86,9 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize> Default
     }
 }
 
-impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize> FractionalDelayLine<T, CH, N, ORDER> {
+impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
+    FractionalDelayLine<T, CH, N, ORDER>
+{
     /// Number of samples one read combines (`ORDER + 1`).
     pub const TAPS: usize = ORDER + 1;
 
@@ -94,7 +96,10 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize> FractionalD
     pub fn new() -> Self {
         const {
             assert!(ORDER >= 1, "Lagrange order must be at least 1");
-            assert!(N > ORDER, "the line must hold more samples than the interpolation order");
+            assert!(
+                N > ORDER,
+                "the line must hold more samples than the interpolation order"
+            );
         };
         Self {
             ring: Ring::new(SVector::zeros()),

@@ -71,7 +71,10 @@ impl<T: Scalar> GainFusionConfig<T> {
         if !(positive_finite(self.gamma) && self.gamma <= T::one()) {
             return bad("gfa.gamma", "must be in (0, 1]");
         }
-        if !(self.delay_min_s.is_finite() && self.delay_max_s.is_finite() && self.delay_min_s < self.delay_max_s) {
+        if !(self.delay_min_s.is_finite()
+            && self.delay_max_s.is_finite()
+            && self.delay_min_s < self.delay_max_s)
+        {
             return bad("gfa.delay_range", "needs finite min < max");
         }
         if !(self.initial_delay_s >= self.delay_min_s && self.initial_delay_s <= self.delay_max_s) {
@@ -145,7 +148,10 @@ impl<T: Scalar> GainFusion<T> {
         if !(delay_s.is_finite() && std_s.is_finite()) {
             return Err(Error::NonFinite { field: "gfa.reset" });
         }
-        if delay_s < self.config.delay_min_s || delay_s > self.config.delay_max_s || std_s <= T::zero() {
+        if delay_s < self.config.delay_min_s
+            || delay_s > self.config.delay_max_s
+            || std_s <= T::zero()
+        {
             return Err(Error::OutOfRange {
                 field: "gfa.reset",
                 reason: "delay must be in the configured range and std positive",
@@ -200,7 +206,8 @@ impl<T: Scalar> GainFusion<T> {
             }
         }
         let i_f = T::one() - gain_sum;
-        self.delay_s = (tau_bar + correction).clamp(self.config.delay_min_s, self.config.delay_max_s);
+        self.delay_s =
+            (tau_bar + correction).clamp(self.config.delay_min_s, self.config.delay_max_s);
         self.variance_s2 = (i_f * p_bar * i_f + noise_terms).min(self.variance_cap());
         Ok(GainFusionStep {
             gains,

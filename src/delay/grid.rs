@@ -49,7 +49,13 @@ impl<T: Scalar> GridResampler<T> {
 
     /// Adds a point at `t_us` (strictly after the previous one) and emits
     /// every grid sample between the previous point and this one.
-    fn push(&mut self, period_us: u64, t_us: u64, v: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+    fn push(
+        &mut self,
+        period_us: u64,
+        t_us: u64,
+        v: Vector3<T>,
+        emit: &mut impl FnMut(u64, Vector3<T>),
+    ) {
         match self.previous {
             Some((tp, vp)) if t_us > tp => {
                 let span = T::lit((t_us - tp) as f64);
@@ -120,7 +126,12 @@ impl<T: Scalar> ImuToGrid<T> {
     }
 
     /// Adds one sample; emits smoothed grid samples `(j, x_j)`.
-    pub(crate) fn push(&mut self, t_us: u64, a: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+    pub(crate) fn push(
+        &mut self,
+        t_us: u64,
+        a: Vector3<T>,
+        emit: &mut impl FnMut(u64, Vector3<T>),
+    ) {
         let p = self.period_us;
         let index = (t_us + p / 2) / p;
         let offset = t_us as i64 - (index * p) as i64;
@@ -136,7 +147,9 @@ impl<T: Scalar> ImuToGrid<T> {
                     let mean = sum / T::lit(n as f64);
                     let smoother = &mut self.smoother;
                     self.resampler
-                        .push(p, mean_t.max(0) as u64, mean, &mut |j, x| emit(j, smoother.apply(x)));
+                        .push(p, mean_t.max(0) as u64, mean, &mut |j, x| {
+                            emit(j, smoother.apply(x))
+                        });
                 }
                 *open = Some((index, a, offset, 1));
             }
@@ -174,7 +187,12 @@ impl<T: Scalar> GpsToGrid<T> {
     }
 
     /// Adds one fix (time strictly increasing); emits smoothed grid samples.
-    pub(crate) fn push(&mut self, t_us: u64, v: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+    pub(crate) fn push(
+        &mut self,
+        t_us: u64,
+        v: Vector3<T>,
+        emit: &mut impl FnMut(u64, Vector3<T>),
+    ) {
         self.fixes.push((t_us, v));
         if let Some((t_old, v_old)) = self.fixes.get(self.span) {
             let dt_s = T::lit((t_us - t_old) as f64 * 1e-6);
@@ -182,7 +200,9 @@ impl<T: Scalar> GpsToGrid<T> {
             let mid = t_old + (t_us - t_old) / 2;
             let smoother = &mut self.smoother;
             self.resampler
-                .push(self.period_us, mid, accel, &mut |j, x| emit(j, smoother.apply(x)));
+                .push(self.period_us, mid, accel, &mut |j, x| {
+                    emit(j, smoother.apply(x))
+                });
         }
     }
 }
@@ -201,8 +221,14 @@ pub(crate) fn grid_samples<T: Scalar>(seconds: T, period_us: u64) -> usize {
 /// one: the GPS difference is placed `n/2` fix gaps back and a grid sample
 /// needs the next point, so up to `(n/2 + 1)` of the longest GPS gap, plus
 /// the IMU gap and two samples of resampling.
-pub(crate) fn lead_samples<T: Scalar>(gps_diff_span: usize, max_gps_gap_s: T, max_imu_gap_s: T, period_us: u64) -> usize {
-    let lead_s = (gps_diff_span as f64 / 2.0 + 1.0) * max_gps_gap_s.as_f64() + max_imu_gap_s.as_f64();
+pub(crate) fn lead_samples<T: Scalar>(
+    gps_diff_span: usize,
+    max_gps_gap_s: T,
+    max_imu_gap_s: T,
+    period_us: u64,
+) -> usize {
+    let lead_s =
+        (gps_diff_span as f64 / 2.0 + 1.0) * max_gps_gap_s.as_f64() + max_imu_gap_s.as_f64();
     let samples = lead_s * 1e6 / period_us as f64;
     samples as usize + 3
 }

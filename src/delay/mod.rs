@@ -217,7 +217,10 @@ impl<T: Scalar> DelayLoopConfig<T> {
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
         let positive = |v: T| v.is_finite() && v > T::zero();
         if !positive(self.correlation_rate_hz) || self.correlation_rate_hz > T::lit(1e6) {
-            return bad("correlation_rate_hz", "must be positive, finite, at most 1 MHz");
+            return bad(
+                "correlation_rate_hz",
+                "must be positive, finite, at most 1 MHz",
+            );
         }
         if !positive(self.buffer_s) {
             return bad("buffer_s", "must be positive and finite");
@@ -225,10 +228,17 @@ impl<T: Scalar> DelayLoopConfig<T> {
         if !(1..=MAX_GPS_DIFF_SPAN).contains(&self.gps_diff_span) {
             return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
         }
-        if !positive(self.smoothing_cutoff_hz) || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5) {
-            return bad("smoothing_cutoff_hz", "must be positive and below half the correlation rate");
+        if !positive(self.smoothing_cutoff_hz)
+            || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5)
+        {
+            return bad(
+                "smoothing_cutoff_hz",
+                "must be positive and below half the correlation rate",
+            );
         }
-        if !(self.min_accel_variance_m2_s4.is_finite() && self.min_accel_variance_m2_s4 >= T::zero()) {
+        if !(self.min_accel_variance_m2_s4.is_finite()
+            && self.min_accel_variance_m2_s4 >= T::zero())
+        {
             return bad("min_accel_variance_m2_s4", "must be finite and >= 0");
         }
         if !(self.min_peak >= T::zero() && self.min_peak < T::one()) {
@@ -240,21 +250,32 @@ impl<T: Scalar> DelayLoopConfig<T> {
         if !positive(self.max_imu_gap_s) || !positive(self.max_gps_gap_s) {
             return bad("max_gap_s", "must be positive and finite");
         }
-        if !(self.process_noise_ms2_per_s.is_finite() && self.process_noise_ms2_per_s >= T::zero()) {
+        if !(self.process_noise_ms2_per_s.is_finite() && self.process_noise_ms2_per_s >= T::zero())
+        {
             return bad("process_noise_ms2_per_s", "must be finite and >= 0");
         }
         if !self.measurement_noise_ms2.iter().all(|r| positive(*r)) {
             return bad("measurement_noise_ms2", "must be positive and finite");
         }
-        if !(self.reference_accel_variance_m2_s4.is_finite() && self.reference_accel_variance_m2_s4 >= T::zero()) {
+        if !(self.reference_accel_variance_m2_s4.is_finite()
+            && self.reference_accel_variance_m2_s4 >= T::zero())
+        {
             return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
         }
-        if !(self.reacquire_sigma.is_finite() && self.reacquire_sigma >= T::zero()) || !positive(self.reacquire_after_s) {
-            return bad("reacquire", "sigma must be finite and >= 0, duration positive");
+        if !(self.reacquire_sigma.is_finite() && self.reacquire_sigma >= T::zero())
+            || !positive(self.reacquire_after_s)
+        {
+            return bad(
+                "reacquire",
+                "sigma must be finite and >= 0, duration positive",
+            );
         }
         self.fusion.validate()?;
         if self.fusion.delay_min_s < T::zero() {
-            return bad("fusion.delay_min_s", "the shift window starts at a delay >= 0");
+            return bad(
+                "fusion.delay_min_s",
+                "the shift window starts at a delay >= 0",
+            );
         }
         let period_us = grid_period_us(self.correlation_rate_hz);
         let shift_min = grid_samples(self.fusion.delay_min_s, period_us);
@@ -264,7 +285,12 @@ impl<T: Scalar> DelayLoopConfig<T> {
             buffer_len: grid_samples(self.buffer_s, period_us),
             shift_min,
             lags: shift_max.saturating_sub(shift_min) + 1,
-            lead: lead_samples(self.gps_diff_span, self.max_gps_gap_s, self.max_imu_gap_s, period_us),
+            lead: lead_samples(
+                self.gps_diff_span,
+                self.max_gps_gap_s,
+                self.max_imu_gap_s,
+                period_us,
+            ),
         })
     }
 }
@@ -329,7 +355,9 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
 /// (250 samples), shifts 0 to 1 s (51), and 384 samples of IMU history.
 pub type DefaultDelayLoop<T> = DelayLoop<T, 250, 51, 384>;
 
-impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoop<T, BUF, LAGS, HIST> {
+impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
+    DelayLoop<T, BUF, LAGS, HIST>
+{
     /// A loop for a validated configuration whose sizes fit the capacities.
     pub fn new(config: DelayLoopConfig<T>) -> Result<Self, Error> {
         let sizes = config.sizes()?;
@@ -344,7 +372,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
             config,
             period_s: T::lit(sizes.period_us as f64 * 1e-6),
             imu_grid: ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz),
-            gps_grid: GpsToGrid::new(sizes.period_us, config.gps_diff_span, config.smoothing_cutoff_hz),
+            gps_grid: GpsToGrid::new(
+                sizes.period_us,
+                config.gps_diff_span,
+                config.smoothing_cutoff_hz,
+            ),
             correlator,
             fusion: GainFusion::new(config.fusion)?,
             last_imu_us: None,
@@ -416,7 +448,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
             self.restarts += 1;
         }
         let correlator = &mut self.correlator;
-        self.imu_grid.push(t_us, accel_ned_m_s2, &mut |j, x| correlator.push_x(j, x));
+        self.imu_grid
+            .push(t_us, accel_ned_m_s2, &mut |j, x| correlator.push_x(j, x));
         self.last_imu_us = Some(t_us);
         Ok(())
     }
@@ -425,7 +458,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
     /// with a full correlation buffer, runs the peak search and the GFA and
     /// returns the record; otherwise `None`. Refused, state unchanged:
     /// non-finite values, time not increasing.
-    pub fn push_gps(&mut self, t_us: u64, velocity_ned_m_s: Vector3<T>) -> Result<Option<DelayUpdate<T>>, Error> {
+    pub fn push_gps(
+        &mut self,
+        t_us: u64,
+        velocity_ned_m_s: Vector3<T>,
+    ) -> Result<Option<DelayUpdate<T>>, Error> {
         if !all_finite(&velocity_ned_m_s) {
             return Err(Error::NonFinite {
                 field: "delay.gps_velocity",
@@ -501,7 +538,13 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
     /// with the estimate, on one side, for long enough. A deviation from the
     /// paper, whose loop has a fixed gain and follows a delay step only at the
     /// GFA's pace.
-    fn reacquire(&mut self, t_us: u64, z: &[T; AXES], valid: &[bool; AXES], r_buffer_s2: &[T; AXES]) -> bool {
+    fn reacquire(
+        &mut self,
+        t_us: u64,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) -> bool {
         let k = self.config.reacquire_sigma;
         if k <= T::zero() {
             return false;
@@ -533,11 +576,16 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> DelayLoo
         self.disagreeing_since_us = None;
         let n = T::lit(count as f64);
         // The mean of `count` measurements of variance mean(R_i): variance mean(R) / count.
-        self.fusion.reset(z_sum / n, (r_sum / (n * n)).sqrt()).is_ok()
+        self.fusion
+            .reset(z_sum / n, (r_sum / (n * n)).sqrt())
+            .is_ok()
     }
 
     /// [`DelayLoop::push_gps`] for any [`GpsFix`].
-    pub fn push_gps_fix<G: GpsFix<T> + ?Sized>(&mut self, fix: &G) -> Result<Option<DelayUpdate<T>>, Error> {
+    pub fn push_gps_fix<G: GpsFix<T> + ?Sized>(
+        &mut self,
+        fix: &G,
+    ) -> Result<Option<DelayUpdate<T>>, Error> {
         self.push_gps(fix.time_us(), fix.velocity_ned_m_s())
     }
 }

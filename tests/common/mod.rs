@@ -8,7 +8,10 @@ pub struct Lcg(pub u64);
 
 impl Lcg {
     pub fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
@@ -31,11 +34,19 @@ impl Motion {
     pub fn random(seed: u64, count: usize, f_lo: f64, f_hi: f64, rms: [f64; 3]) -> Self {
         let mut rng = Lcg(seed);
         let terms = rms.map(|r| {
-            let amp = if count == 0 { 0.0 } else { r * (2.0 / count as f64).sqrt() };
+            let amp = if count == 0 {
+                0.0
+            } else {
+                r * (2.0 / count as f64).sqrt()
+            };
             (0..count)
                 .map(|_| {
                     let f = f_lo + (f_hi - f_lo) * rng.uniform();
-                    (amp, 2.0 * std::f64::consts::PI * f, 2.0 * std::f64::consts::PI * rng.uniform())
+                    (
+                        amp,
+                        2.0 * std::f64::consts::PI * f,
+                        2.0 * std::f64::consts::PI * rng.uniform(),
+                    )
                 })
                 .collect()
         });
@@ -43,15 +54,27 @@ impl Motion {
     }
 
     pub fn hover() -> Self {
-        Self { terms: [vec![], vec![], vec![]] }
+        Self {
+            terms: [vec![], vec![], vec![]],
+        }
     }
 
     pub fn accel(&self, t: f64) -> [f64; 3] {
-        core::array::from_fn(|i| self.terms[i].iter().map(|&(a, w, p)| a * (w * t + p).sin()).sum())
+        core::array::from_fn(|i| {
+            self.terms[i]
+                .iter()
+                .map(|&(a, w, p)| a * (w * t + p).sin())
+                .sum()
+        })
     }
 
     pub fn velocity(&self, t: f64) -> [f64; 3] {
-        core::array::from_fn(|i| self.terms[i].iter().map(|&(a, w, p)| -a / w * (w * t + p).cos()).sum())
+        core::array::from_fn(|i| {
+            self.terms[i]
+                .iter()
+                .map(|&(a, w, p)| -a / w * (w * t + p).cos())
+                .sum()
+        })
     }
 }
 
@@ -109,10 +132,17 @@ impl Scenario {
         let imu_dt = 1e6 / self.imu_hz;
         let n_imu = (self.duration_s * self.imu_hz) as u64;
         for k in 1..=n_imu {
-            let jitter = if self.imu_jitter_us > 0.0 { (rng.uniform() * 2.0 - 1.0) * self.imu_jitter_us } else { 0.0 };
+            let jitter = if self.imu_jitter_us > 0.0 {
+                (rng.uniform() * 2.0 - 1.0) * self.imu_jitter_us
+            } else {
+                0.0
+            };
             let t_us = (k as f64 * imu_dt + jitter).round() as u64;
             let a = motion.accel(t_us as f64 * 1e-6);
-            events.push(Event::Imu(t_us, a.map(|x| x + self.accel_sigma * rng.normal())));
+            events.push(Event::Imu(
+                t_us,
+                a.map(|x| x + self.accel_sigma * rng.normal()),
+            ));
         }
         let gps_dt = 1e6 / self.gps_hz;
         let n_gps = (self.duration_s * self.gps_hz) as u64;
@@ -120,7 +150,10 @@ impl Scenario {
             let t_us = (k as f64 * gps_dt).round() as u64 + 137;
             let t = t_us as f64 * 1e-6;
             let v = motion.velocity(t - delay(t));
-            events.push(Event::Gps(t_us, v.map(|x| x + self.gps_sigma * rng.normal())));
+            events.push(Event::Gps(
+                t_us,
+                v.map(|x| x + self.gps_sigma * rng.normal()),
+            ));
         }
         // GPS after IMU at equal times: the receiver's message arrives after the sample.
         events.sort_by_key(|e| match *e {
