@@ -34,7 +34,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::gain_fusion::AXES;
 use super::grid::{
-    GpsToGrid, ImuToGrid, MAX_GPS_DIFF_SPAN, grid_period_us, grid_samples, lead_samples,
+    GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples, non_negative_finite,
+    positive_finite, validate_grid,
 };
 use super::ring::Ring;
 use crate::error::Error;
@@ -86,31 +87,19 @@ impl<T: Scalar> CalibrationConfig<T> {
     /// [`OfflineCalibrator::new`]).
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
-        let positive = |v: T| v.is_finite() && v > T::zero();
-        if !positive(self.correlation_rate_hz) || self.correlation_rate_hz > T::lit(1e6) {
-            return bad(
-                "correlation_rate_hz",
-                "must be positive, finite, at most 1 MHz",
-            );
-        }
+        let positive = positive_finite::<T>;
+        validate_grid(
+            self.correlation_rate_hz,
+            self.gps_diff_span,
+            self.smoothing_cutoff_hz,
+        )?;
         if !positive(self.max_shift_s) {
             return bad("max_shift_s", "must be positive and finite");
         }
-        if !(1..=MAX_GPS_DIFF_SPAN).contains(&self.gps_diff_span) {
-            return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
-        }
-        if !positive(self.smoothing_cutoff_hz)
-            || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5)
-        {
-            return bad(
-                "smoothing_cutoff_hz",
-                "must be positive and below half the correlation rate",
-            );
-        }
-        if !(self.tilt_gain_per_s.is_finite() && self.tilt_gain_per_s >= T::zero()) {
+        if !non_negative_finite(self.tilt_gain_per_s) {
             return bad("tilt_gain_per_s", "must be finite and >= 0");
         }
-        if !positive(self.gravity_m_s2) || !positive(self.max_gap_s) {
+        if !(positive(self.gravity_m_s2) && positive(self.max_gap_s)) {
             return bad("gravity_m_s2/max_gap_s", "must be positive and finite");
         }
         if self.min_pairs < 3 {

@@ -26,6 +26,7 @@
 //! capped at the variance of a uniform distribution over that range, so a
 //! long hover cannot make it grow without bound.
 
+use super::grid::{non_negative_finite, positive_finite};
 use crate::error::Error;
 use crate::scalar::Scalar;
 
@@ -58,10 +59,6 @@ impl<T: Scalar> Default for GainFusionConfig<T> {
             initial_std_s: T::lit(0.1),
         }
     }
-}
-
-fn positive_finite<T: Scalar>(v: T) -> bool {
-    v.is_finite() && v > T::zero()
 }
 
 impl<T: Scalar> GainFusionConfig<T> {
@@ -178,8 +175,8 @@ impl<T: Scalar> GainFusion<T> {
                 field: "gfa.measurement",
             });
         }
-        if !(process_noise_s2.is_finite() && process_noise_s2 >= T::zero())
-            || !measurement_noise_s2.iter().all(|r| positive_finite(*r))
+        if !(non_negative_finite(process_noise_s2)
+            && measurement_noise_s2.iter().all(|r| positive_finite(*r)))
         {
             return Err(Error::OutOfRange {
                 field: "gfa.noise",

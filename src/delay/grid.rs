@@ -232,3 +232,39 @@ pub(crate) fn lead_samples<T: Scalar>(
     let samples = lead_s * 1e6 / period_us as f64;
     samples as usize + 3
 }
+
+/// `v` is finite and `> 0`.
+pub(crate) fn positive_finite<T: Scalar>(v: T) -> bool {
+    v.is_finite() && v > T::zero()
+}
+
+/// `v` is finite and `>= 0`.
+pub(crate) fn non_negative_finite<T: Scalar>(v: T) -> bool {
+    v.is_finite() && v >= T::zero()
+}
+
+/// Checks the settings shared by the online loop and the offline calibration:
+/// grid rate, GPS differencing span, smoothing cutoff.
+pub(crate) fn validate_grid<T: Scalar>(
+    rate_hz: T,
+    gps_diff_span: usize,
+    smoothing_cutoff_hz: T,
+) -> Result<(), crate::error::Error> {
+    let bad = |field, reason| Err(crate::error::Error::InvalidConfig { field, reason });
+    if !positive_finite(rate_hz) || rate_hz > T::lit(1e6) {
+        return bad(
+            "correlation_rate_hz",
+            "must be positive, finite, at most 1 MHz",
+        );
+    }
+    if !(1..=MAX_GPS_DIFF_SPAN).contains(&gps_diff_span) {
+        return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
+    }
+    if !positive_finite(smoothing_cutoff_hz) || smoothing_cutoff_hz >= rate_hz * T::lit(0.5) {
+        return bad(
+            "smoothing_cutoff_hz",
+            "must be positive and below half the correlation rate",
+        );
+    }
+    Ok(())
+}

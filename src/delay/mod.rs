@@ -81,7 +81,10 @@ use nalgebra::Vector3;
 use crate::error::Error;
 use crate::scalar::{Scalar, all_finite};
 use crate::sensors::{GpsFix, check_time};
-use grid::{GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples};
+use grid::{
+    GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples, non_negative_finite,
+    positive_finite, validate_grid,
+};
 
 /// Per-sensor pure delays of eq. (15), seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -215,30 +218,16 @@ impl<T: Scalar> DelayLoopConfig<T> {
 
     fn sizes(&self) -> Result<GridSizes, Error> {
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
-        let positive = |v: T| v.is_finite() && v > T::zero();
-        if !positive(self.correlation_rate_hz) || self.correlation_rate_hz > T::lit(1e6) {
-            return bad(
-                "correlation_rate_hz",
-                "must be positive, finite, at most 1 MHz",
-            );
-        }
+        let positive = positive_finite::<T>;
+        validate_grid(
+            self.correlation_rate_hz,
+            self.gps_diff_span,
+            self.smoothing_cutoff_hz,
+        )?;
         if !positive(self.buffer_s) {
             return bad("buffer_s", "must be positive and finite");
         }
-        if !(1..=MAX_GPS_DIFF_SPAN).contains(&self.gps_diff_span) {
-            return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
-        }
-        if !positive(self.smoothing_cutoff_hz)
-            || self.smoothing_cutoff_hz >= self.correlation_rate_hz * T::lit(0.5)
-        {
-            return bad(
-                "smoothing_cutoff_hz",
-                "must be positive and below half the correlation rate",
-            );
-        }
-        if !(self.min_accel_variance_m2_s4.is_finite()
-            && self.min_accel_variance_m2_s4 >= T::zero())
-        {
+        if !non_negative_finite(self.min_accel_variance_m2_s4) {
             return bad("min_accel_variance_m2_s4", "must be finite and >= 0");
         }
         if !(self.min_peak >= T::zero() && self.min_peak < T::one()) {
@@ -247,24 +236,19 @@ impl<T: Scalar> DelayLoopConfig<T> {
         if self.fixes_per_update == 0 {
             return bad("fixes_per_update", "must be at least 1");
         }
-        if !positive(self.max_imu_gap_s) || !positive(self.max_gps_gap_s) {
+        if !(positive(self.max_imu_gap_s) && positive(self.max_gps_gap_s)) {
             return bad("max_gap_s", "must be positive and finite");
         }
-        if !(self.process_noise_ms2_per_s.is_finite() && self.process_noise_ms2_per_s >= T::zero())
-        {
+        if !non_negative_finite(self.process_noise_ms2_per_s) {
             return bad("process_noise_ms2_per_s", "must be finite and >= 0");
         }
         if !self.measurement_noise_ms2.iter().all(|r| positive(*r)) {
             return bad("measurement_noise_ms2", "must be positive and finite");
         }
-        if !(self.reference_accel_variance_m2_s4.is_finite()
-            && self.reference_accel_variance_m2_s4 >= T::zero())
-        {
+        if !non_negative_finite(self.reference_accel_variance_m2_s4) {
             return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
         }
-        if !(self.reacquire_sigma.is_finite() && self.reacquire_sigma >= T::zero())
-            || !positive(self.reacquire_after_s)
-        {
+        if !(non_negative_finite(self.reacquire_sigma) && positive(self.reacquire_after_s)) {
             return bad(
                 "reacquire",
                 "sigma must be finite and >= 0, duration positive",
