@@ -441,3 +441,20 @@ macro_rules! delay_tests {
 
 delay_tests!(f64_tests, f64, 1e-9);
 delay_tests!(f32_tests, f32, 2e-5);
+
+/// The default loop fits a Cortex-M4F's RAM comfortably in f32.
+#[test]
+fn default_sizes() {
+    use std::mem::size_of;
+    let sizes = [
+        size_of::<DefaultDelayLoop<f32>>(),
+        size_of::<DefaultDelayLoop<f64>>(),
+        size_of::<DefaultCalibrator<f32>>(),
+        size_of::<DefaultCalibrator<f64>>(),
+    ];
+    println!(
+        "DefaultDelayLoop f32/f64 {} / {} bytes; DefaultCalibrator f32/f64 {} / {} bytes",
+        sizes[0], sizes[1], sizes[2], sizes[3]
+    );
+    assert!(sizes[0] < 24 * 1024);
+}

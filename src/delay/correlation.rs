@@ -22,7 +22,7 @@
 //! 38 250 at the defaults) for every fix. Instead every sum is updated when a
 //! grid pair arrives: add the product entering the window, subtract the one
 //! leaving it, `3 L` products each way, i.e. `Tgps / Tc` times that per fix
-//! (765 products per 10 Hz fix at 50 Hz, 25x cheaper, and the same at any
+//! (2 x 765 products per 10 Hz fix at 50 Hz, 25x fewer, and the same at any
 //! delay: the shift only selects which stored `x` is used). The window sums
 //! of `x` do not depend on the shift at all: one running `Sx, Sxx` per grid
 //! time, stored in a ring and read at age `s`. The peak search then costs
