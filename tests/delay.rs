@@ -67,17 +67,21 @@ macro_rules! delay_tests {
                 config
             }
 
+            /// RMSE over the last 60 s of a 120 s run at a constant delay `tau`.
+            fn constant_delay_rmse(mut scenario: Scenario, motion: &Motion, tau: f64, seed: u64, start_s: f64) -> f64 {
+                scenario.seed = seed;
+                scenario.duration_s = 120.0;
+                let trace = run(&scenario, motion, |_| tau, start_at(start_s));
+                rmse_after(&trace, 60.0, tau)
+            }
+
             /// Simulator-like: IMU 1 kHz, GPS 10 Hz, strong motion, true delay 0.2 s
             /// (on the grid) and 0.237 s (between grid samples), start 0.1 s off.
             #[test]
             fn recovers_constant_delay_simulator() {
+                let motion = Motion::random(3, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
                 for (tau, seed) in [(0.2, 1), (0.237, 5)] {
-                    let mut scenario = Scenario::simulator();
-                    scenario.seed = seed;
-                    scenario.duration_s = 120.0;
-                    let motion = Motion::random(3, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
-                    let trace = run(&scenario, &motion, |_| tau, start_at(tau - 0.1));
-                    let rmse = rmse_after(&trace, 60.0, tau);
+                    let rmse = constant_delay_rmse(Scenario::simulator(), &motion, tau, seed, tau - 0.1);
                     println!("simulator tau {tau}: RMSE over the last 60 s {:.2} ms", rmse * 1e3);
                     assert!(rmse < 4e-3, "RMSE {rmse}");
                 }
@@ -87,13 +91,9 @@ macro_rules! delay_tests {
             /// motion, delay 0.28 s and the 0.58 s of the log with 0.3 s added.
             #[test]
             fn recovers_constant_delay_real_log_rates() {
+                let motion = Motion::random(9, 8, 0.05, 1.0, [3.0, 3.0, 1.5]);
                 for (tau, seed) in [(0.28, 3), (0.58, 4)] {
-                    let mut scenario = Scenario::real_log_like();
-                    scenario.seed = seed;
-                    scenario.duration_s = 120.0;
-                    let motion = Motion::random(9, 8, 0.05, 1.0, [3.0, 3.0, 1.5]);
-                    let trace = run(&scenario, &motion, |_| tau, start_at(0.2));
-                    let rmse = rmse_after(&trace, 60.0, tau);
+                    let rmse = constant_delay_rmse(Scenario::real_log_like(), &motion, tau, seed, 0.2);
                     println!("50 Hz / 5 Hz tau {tau}: RMSE over the last 60 s {:.2} ms", rmse * 1e3);
                     assert!(rmse < 6e-3, "RMSE {rmse}");
                 }
@@ -457,4 +457,40 @@ fn default_sizes() {
         sizes[0], sizes[1], sizes[2], sizes[3]
     );
     assert!(sizes[0] < 24 * 1024);
+}
+
+mod no_panic {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn value() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            8 => -20.0..20.0f64,
+            1 => Just(f64::NAN),
+            1 => Just(f64::INFINITY),
+            1 => prop_oneof![Just(1e5), Just(-1e30), Just(9.9e3)],
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Any input sequence (bad values, repeated or backward times, gaps):
+        /// no panic, the estimate stays finite and in range.
+        #[test]
+        fn loop_never_panics_or_leaves_range(
+            steps in proptest::collection::vec((0u64..400_000, any::<bool>(), value(), value(), value()), 200..1500)
+        ) {
+            let mut delay_loop = DefaultDelayLoop::<f32>::new(DelayLoopConfig::default()).unwrap();
+            let mut t = 1_000_000u64;
+            for (dt, is_gps, a, b, c) in steps {
+                // Mostly 1 ms steps, sometimes long gaps or going backwards.
+                t = if dt > 390_000 { t.saturating_sub(dt - 390_000) } else { t + dt % 20_000 };
+                let v = Vector3::new(a as f32, b as f32, c as f32);
+                let _ = if is_gps { delay_loop.push_gps(t, v).map(|_| ()) } else { delay_loop.push_imu(t, v) };
+                let d = delay_loop.delay_s();
+                prop_assert!(d.is_finite() && (0.0..=1.0).contains(&d));
+                prop_assert!(delay_loop.delay_std_s().is_finite());
+            }
+        }
+    }
 }

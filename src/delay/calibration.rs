@@ -34,8 +34,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::gain_fusion::AXES;
 use super::grid::{
-    GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples, non_negative_finite,
-    positive_finite, validate_grid,
+    GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
+    non_negative_finite, positive_finite, validate_grid,
 };
 use super::ring::Ring;
 use crate::error::Error;
@@ -43,7 +43,7 @@ use crate::geo::{
     quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix,
 };
 use crate::scalar::{Scalar, all_finite};
-use crate::sensors::{GpsFix, ImuSample, check_time, checked_gps, checked_imu};
+use crate::sensors::{GpsFix, ImuSample, checked_gps, checked_imu};
 
 /// Configuration of the offline calibration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,20 +86,14 @@ impl<T: Scalar> CalibrationConfig<T> {
     /// Checks every field (the sizes against the capacities are checked by
     /// [`OfflineCalibrator::new`]).
     pub fn validate(&self) -> Result<(), Error> {
+        let extent = ("max_shift_s", self.max_shift_s);
+        let rate = self.correlation_rate_hz;
+        validate_grid(rate, self.gps_diff_span, self.smoothing_cutoff_hz, extent)?;
         let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
-        let positive = positive_finite::<T>;
-        validate_grid(
-            self.correlation_rate_hz,
-            self.gps_diff_span,
-            self.smoothing_cutoff_hz,
-        )?;
-        if !positive(self.max_shift_s) {
-            return bad("max_shift_s", "must be positive and finite");
-        }
         if !non_negative_finite(self.tilt_gain_per_s) {
             return bad("tilt_gain_per_s", "must be finite and >= 0");
         }
-        if !(positive(self.gravity_m_s2) && positive(self.max_gap_s)) {
+        if !(positive_finite(self.gravity_m_s2) && positive_finite(self.max_gap_s)) {
             return bad("gravity_m_s2/max_gap_s", "must be positive and finite");
         }
         if self.min_pairs < 3 {
@@ -231,6 +225,40 @@ impl<T: Scalar, const HIST: usize> GridHistory<T, HIST> {
     }
 }
 
+/// Which stream a new grid sample belongs to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Stream {
+    Imu,
+    Gps,
+}
+
+/// Adds the pairs a new grid sample (`index`, `value`) of `stream` forms with
+/// the other stream's stored samples. Shift `k - S` pairs IMU `i` with GPS
+/// `j = i + k - S`.
+fn add_pairs<T: Scalar, const SHIFTS: usize, const HIST: usize>(
+    sums: &mut [ShiftSums<T>; SHIFTS],
+    max_shift: usize,
+    other: &GridHistory<T, HIST>,
+    index: u64,
+    value: Vector3<T>,
+    stream: Stream,
+) {
+    let s = max_shift as u64;
+    for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * max_shift + 1) {
+        let k = k as u64;
+        let partner = match stream {
+            Stream::Imu => (index + k).checked_sub(s),
+            Stream::Gps => (index + s).checked_sub(k),
+        };
+        if let Some(other_value) = partner.and_then(|p| other.at(p)) {
+            match stream {
+                Stream::Imu => shift_sums.add(&value, &other_value),
+                Stream::Gps => shift_sums.add(&other_value, &value),
+            }
+        }
+    }
+}
+
 /// Streaming offline calibrator over shifts `-S..=S` (`2 S + 1 <= SHIFTS`)
 /// keeping `HIST` grid samples of each stream (at least `S` plus the lead of
 /// the IMU stream, ~1 s).
@@ -292,18 +320,20 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         })
     }
 
-    fn gap(&self, last: Option<u64>, t_us: u64) -> bool {
-        last.is_some_and(|l| T::lit((t_us - l) as f64 * 1e-6) > self.config.max_gap_s)
-    }
-
     /// One IMU sample, in time order with the GPS fixes. Refused, state
     /// unchanged: non-finite values, time not increasing.
     pub fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, sample: &I) -> Result<(), Error> {
         let imu = checked_imu(sample)?;
-        check_time("imu", self.last_imu_us, imu.t_us)?;
+        let gap = admit_sample(
+            "imu",
+            "imu.accel",
+            &imu.accel_m_s2,
+            self.last_imu_us,
+            imu.t_us,
+            self.config.max_gap_s,
+        )?;
         let f = imu.accel_m_s2;
         let g = self.config.gravity_m_s2;
-        let gap = self.gap(self.last_imu_us, imu.t_us);
         let q = match (self.attitude, self.last_imu_us) {
             (Some(q), Some(last)) if !gap => {
                 let dt = T::lit((imu.t_us - last) as f64 * 1e-6);
@@ -335,15 +365,7 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         let (x_hist, y_hist, sums, s) = (&mut self.x, &self.y, &mut self.sums, self.max_shift);
         self.imu_grid.push(imu.t_us, a_nav, &mut |i, x| {
             x_hist.push(i, x);
-            // Pairs with the GPS samples already stored: shift = j - i.
-            for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * s + 1) {
-                if let Some(y) = (i + k as u64)
-                    .checked_sub(s as u64)
-                    .and_then(|j| y_hist.at(j))
-                {
-                    shift_sums.add(&x, &y);
-                }
-            }
+            add_pairs(sums, s, y_hist, i, x, Stream::Imu);
         });
         Ok(())
     }
@@ -352,8 +374,15 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
     /// unchanged: non-finite values, time not increasing.
     pub fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, fix: &G) -> Result<(), Error> {
         let gps = checked_gps(fix)?;
-        check_time("gps", self.last_gps_us, gps.t_us)?;
-        if self.gap(self.last_gps_us, gps.t_us) {
+        let gap = admit_sample(
+            "gps",
+            "gps.velocity",
+            &gps.velocity_ned_m_s,
+            self.last_gps_us,
+            gps.t_us,
+            self.config.max_gap_s,
+        )?;
+        if gap {
             self.gps_grid.reset();
         }
         self.last_gps_us = Some(gps.t_us);
@@ -361,15 +390,7 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         self.gps_grid
             .push(gps.t_us, gps.velocity_ned_m_s, &mut |j, y| {
                 y_hist.push(j, y);
-                // Pairs with the IMU samples already stored: i = j - shift.
-                for (k, shift_sums) in sums.iter_mut().enumerate().take(2 * s + 1) {
-                    if let Some(x) = (j + s as u64)
-                        .checked_sub(k as u64)
-                        .and_then(|i| x_hist.at(i))
-                    {
-                        shift_sums.add(&x, &y);
-                    }
-                }
+                add_pairs(sums, s, x_hist, j, y, Stream::Gps);
             });
         Ok(())
     }

@@ -27,7 +27,9 @@
 use nalgebra::Vector3;
 
 use super::ring::Ring;
-use crate::scalar::Scalar;
+use crate::error::Error;
+use crate::scalar::{Scalar, all_finite};
+use crate::sensors::check_time;
 
 /// Longest GPS differencing span `n` supported.
 pub const MAX_GPS_DIFF_SPAN: usize = 8;
@@ -98,14 +100,43 @@ impl<T: Scalar> Smoother<T> {
     }
 }
 
+/// Irregular points to smoothed grid samples: the resampler, then the smoother.
+#[derive(Debug, Clone)]
+struct SmoothedGrid<T: Scalar> {
+    period_us: u64,
+    resampler: GridResampler<T>,
+    smoother: Smoother<T>,
+}
+
+impl<T: Scalar> SmoothedGrid<T> {
+    fn new(period_us: u64, cutoff_hz: T) -> Self {
+        Self {
+            period_us,
+            resampler: GridResampler::new(),
+            smoother: Smoother::new(cutoff_hz, T::lit(period_us as f64 * 1e-6)),
+        }
+    }
+
+    fn reset(&mut self) {
+        self.resampler = GridResampler::new();
+        self.smoother.stages = None;
+    }
+
+    fn push(&mut self, t_us: u64, v: Vector3<T>, emit: &mut impl FnMut(u64, Vector3<T>)) {
+        let smoother = &mut self.smoother;
+        self.resampler.push(self.period_us, t_us, v, &mut |j, x| {
+            emit(j, smoother.apply(x))
+        });
+    }
+}
+
 /// IMU side: bin means at their mean time, resampled and smoothed.
 #[derive(Debug, Clone)]
 pub(crate) struct ImuToGrid<T: Scalar> {
     period_us: u64,
     /// Open bin: index, sum of values, sum of time offsets from the bin centre (us), count.
     bin: Option<(u64, Vector3<T>, i64, i64)>,
-    resampler: GridResampler<T>,
-    smoother: Smoother<T>,
+    grid: SmoothedGrid<T>,
 }
 
 impl<T: Scalar> ImuToGrid<T> {
@@ -113,16 +144,14 @@ impl<T: Scalar> ImuToGrid<T> {
         Self {
             period_us,
             bin: None,
-            resampler: GridResampler::new(),
-            smoother: Smoother::new(cutoff_hz, T::lit(period_us as f64 * 1e-6)),
+            grid: SmoothedGrid::new(period_us, cutoff_hz),
         }
     }
 
     /// Forgets the stream (after a gap); the configuration stays.
     pub(crate) fn reset(&mut self) {
         self.bin = None;
-        self.resampler = GridResampler::new();
-        self.smoother.stages = None;
+        self.grid.reset();
     }
 
     /// Adds one sample; emits smoothed grid samples `(j, x_j)`.
@@ -145,11 +174,7 @@ impl<T: Scalar> ImuToGrid<T> {
                 if let Some((b, sum, off, n)) = open.take() {
                     let mean_t = (b * p) as i64 + (2 * off + n).div_euclid(2 * n);
                     let mean = sum / T::lit(n as f64);
-                    let smoother = &mut self.smoother;
-                    self.resampler
-                        .push(p, mean_t.max(0) as u64, mean, &mut |j, x| {
-                            emit(j, smoother.apply(x))
-                        });
+                    self.grid.push(mean_t.max(0) as u64, mean, emit);
                 }
                 *open = Some((index, a, offset, 1));
             }
@@ -161,29 +186,24 @@ impl<T: Scalar> ImuToGrid<T> {
 /// resampled and smoothed.
 #[derive(Debug, Clone)]
 pub(crate) struct GpsToGrid<T: Scalar> {
-    period_us: u64,
     span: usize,
     fixes: Ring<(u64, Vector3<T>), { MAX_GPS_DIFF_SPAN + 1 }>,
-    resampler: GridResampler<T>,
-    smoother: Smoother<T>,
+    grid: SmoothedGrid<T>,
 }
 
 impl<T: Scalar> GpsToGrid<T> {
     pub(crate) fn new(period_us: u64, span: usize, cutoff_hz: T) -> Self {
         Self {
-            period_us,
             span: span.clamp(1, MAX_GPS_DIFF_SPAN),
             fixes: Ring::new((0, Vector3::zeros())),
-            resampler: GridResampler::new(),
-            smoother: Smoother::new(cutoff_hz, T::lit(period_us as f64 * 1e-6)),
+            grid: SmoothedGrid::new(period_us, cutoff_hz),
         }
     }
 
     /// Forgets the stream (after a gap); the configuration stays.
     pub(crate) fn reset(&mut self) {
         self.fixes.clear();
-        self.resampler = GridResampler::new();
-        self.smoother.stages = None;
+        self.grid.reset();
     }
 
     /// Adds one fix (time strictly increasing); emits smoothed grid samples.
@@ -198,11 +218,7 @@ impl<T: Scalar> GpsToGrid<T> {
             let dt_s = T::lit((t_us - t_old) as f64 * 1e-6);
             let accel = (v - v_old) / dt_s;
             let mid = t_old + (t_us - t_old) / 2;
-            let smoother = &mut self.smoother;
-            self.resampler
-                .push(self.period_us, mid, accel, &mut |j, x| {
-                    emit(j, smoother.apply(x))
-                });
+            self.grid.push(mid, accel, emit);
         }
     }
 }
@@ -244,13 +260,18 @@ pub(crate) fn non_negative_finite<T: Scalar>(v: T) -> bool {
 }
 
 /// Checks the settings shared by the online loop and the offline calibration:
-/// grid rate, GPS differencing span, smoothing cutoff.
+/// grid rate, GPS differencing span, smoothing cutoff, and the duration
+/// (`extent`, named `extent_field`) the correlation spans.
 pub(crate) fn validate_grid<T: Scalar>(
     rate_hz: T,
     gps_diff_span: usize,
     smoothing_cutoff_hz: T,
-) -> Result<(), crate::error::Error> {
-    let bad = |field, reason| Err(crate::error::Error::InvalidConfig { field, reason });
+    (extent_field, extent_s): (&'static str, T),
+) -> Result<(), Error> {
+    let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+    if !positive_finite(extent_s) {
+        return bad(extent_field, "must be positive and finite");
+    }
     if !positive_finite(rate_hz) || rate_hz > T::lit(1e6) {
         return bad(
             "correlation_rate_hz",
@@ -267,4 +288,35 @@ pub(crate) fn validate_grid<T: Scalar>(
         );
     }
     Ok(())
+}
+
+/// Largest magnitude accepted for an acceleration (m/s^2) or velocity (m/s)
+/// component: far beyond any vehicle, small enough that the correlation's
+/// sums of squares over a buffer cannot overflow `f32`.
+pub const MAX_INPUT_MAGNITUDE: f64 = 1e4;
+
+/// Admits one sample of a stream before any state changes: finite values
+/// (`field` names them) within [`MAX_INPUT_MAGNITUDE`] and a strictly
+/// increasing time. Returns whether the
+/// gap since the previous sample exceeds `max_gap_s` (the caller restarts
+/// its resampling).
+pub(crate) fn admit_sample<T: Scalar>(
+    stream: &'static str,
+    field: &'static str,
+    value: &Vector3<T>,
+    previous_us: Option<u64>,
+    t_us: u64,
+    max_gap_s: T,
+) -> Result<bool, Error> {
+    if !all_finite(value) {
+        return Err(Error::NonFinite { field });
+    }
+    if value.amax() > T::lit(MAX_INPUT_MAGNITUDE) {
+        return Err(Error::OutOfRange {
+            field,
+            reason: "component magnitude above MAX_INPUT_MAGNITUDE",
+        });
+    }
+    check_time(stream, previous_us, t_us)?;
+    Ok(previous_us.is_some_and(|p| T::lit((t_us - p) as f64 * 1e-6) > max_gap_s))
 }

@@ -74,16 +74,16 @@ pub use correlation::{AxisPeak, SlidingCorrelator};
 pub use fir::WhiteningFir;
 pub use fractional_delay::FractionalDelayLine;
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
-pub use grid::MAX_GPS_DIFF_SPAN;
+pub use grid::{MAX_GPS_DIFF_SPAN, MAX_INPUT_MAGNITUDE};
 
 use nalgebra::Vector3;
 
 use crate::error::Error;
-use crate::scalar::{Scalar, all_finite};
-use crate::sensors::{GpsFix, check_time};
+use crate::scalar::Scalar;
+use crate::sensors::GpsFix;
 use grid::{
-    GpsToGrid, ImuToGrid, grid_period_us, grid_samples, lead_samples, non_negative_finite,
-    positive_finite, validate_grid,
+    GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
+    non_negative_finite, positive_finite, validate_grid,
 };
 
 /// Per-sensor pure delays of eq. (15), seconds.
@@ -223,10 +223,8 @@ impl<T: Scalar> DelayLoopConfig<T> {
             self.correlation_rate_hz,
             self.gps_diff_span,
             self.smoothing_cutoff_hz,
+            ("buffer_s", self.buffer_s),
         )?;
-        if !positive(self.buffer_s) {
-            return bad("buffer_s", "must be positive and finite");
-        }
         if !non_negative_finite(self.min_accel_variance_m2_s4) {
             return bad("min_accel_variance_m2_s4", "must be finite and >= 0");
         }
@@ -416,17 +414,17 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
 
     /// Feeds the forward-reckoned NED acceleration `a_fwd` (m/s^2, gravity
     /// removed) at IMU time `t_us`. Refused, state unchanged: non-finite
-    /// values, time not increasing.
+    /// values or beyond [`MAX_INPUT_MAGNITUDE`], time not increasing.
     pub fn push_imu(&mut self, t_us: u64, accel_ned_m_s2: Vector3<T>) -> Result<(), Error> {
-        if !all_finite(&accel_ned_m_s2) {
-            return Err(Error::NonFinite {
-                field: "delay.accel_ned",
-            });
-        }
-        check_time("imu", self.last_imu_us, t_us)?;
-        if let Some(last) = self.last_imu_us
-            && T::lit((t_us - last) as f64 * 1e-6) > self.config.max_imu_gap_s
-        {
+        let gap = admit_sample(
+            "imu",
+            "delay.accel_ned",
+            &accel_ned_m_s2,
+            self.last_imu_us,
+            t_us,
+            self.config.max_imu_gap_s,
+        )?;
+        if gap {
             self.imu_grid.reset();
             self.correlator.reset();
             self.restarts += 1;
@@ -441,21 +439,22 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// Feeds one GPS velocity (NED, m/s) received at `t_us`. On an update fix
     /// with a full correlation buffer, runs the peak search and the GFA and
     /// returns the record; otherwise `None`. Refused, state unchanged:
-    /// non-finite values, time not increasing.
+    /// non-finite values or beyond [`MAX_INPUT_MAGNITUDE`], time not
+    /// increasing.
     pub fn push_gps(
         &mut self,
         t_us: u64,
         velocity_ned_m_s: Vector3<T>,
     ) -> Result<Option<DelayUpdate<T>>, Error> {
-        if !all_finite(&velocity_ned_m_s) {
-            return Err(Error::NonFinite {
-                field: "delay.gps_velocity",
-            });
-        }
-        check_time("gps", self.last_gps_us, t_us)?;
-        if let Some(last) = self.last_gps_us
-            && T::lit((t_us - last) as f64 * 1e-6) > self.config.max_gps_gap_s
-        {
+        let gap = admit_sample(
+            "gps",
+            "delay.gps_velocity",
+            &velocity_ned_m_s,
+            self.last_gps_us,
+            t_us,
+            self.config.max_gps_gap_s,
+        )?;
+        if gap {
             self.gps_grid.reset();
             self.correlator.reset_pairs();
             self.restarts += 1;
