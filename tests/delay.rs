@@ -296,6 +296,25 @@ macro_rules! delay_tests {
                 assert!(line.read_seconds(0.1, 0.0).is_err());
             }
 
+            /// The mean period of a jittered 50 Hz stream is 20 ms to within the
+            /// jitter over the span; bad timestamps are refused.
+            #[test]
+            fn sample_period_averages_jitter() {
+                let mut period = SamplePeriod::new();
+                assert_eq!(period.period_s::<T>(), None);
+                let mut rng = Lcg(3);
+                for k in 0..1000u64 {
+                    let jitter = ((rng.uniform() * 2.0 - 1.0) * 2000.0) as i64;
+                    period.push((1_000_000 + k as i64 * 20_000 + jitter) as u64).unwrap();
+                }
+                let p = period.period_s::<T>().unwrap() as f64;
+                // Endpoint jitter of +-2 ms over 999 intervals: +-4 us.
+                assert!((p - 0.02).abs() < 4.1e-6, "{p}");
+                let before = period;
+                assert!(period.push(1_000).is_err());
+                assert_eq!(before, period);
+            }
+
             /// Linear phase: H(w) e^{jwD} is real; group delay (TAPS-1)/2; unit
             /// DC gain; a passband sine comes out delayed by D samples.
             #[test]

@@ -233,3 +233,46 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
         Some(amplitude * omega_h.abs().powi((ORDER + 1) as i32) / factorial * node_product)
     }
 }
+
+/// The long-run mean sample period of a stream, from its timestamps:
+/// `(t_last - t_first) / (count - 1)`, `O(1)` per sample. This is the period
+/// [`FractionalDelayLine::read_seconds`] expects (module docs, timing):
+/// zero-mean timestamp jitter averages out. A dropped sample biases it (the
+/// line's indices assume none are missing), so restart it after a gap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SamplePeriod {
+    first_us: Option<u64>,
+    last_us: u64,
+    intervals: u64,
+}
+
+impl SamplePeriod {
+    /// No samples yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a timestamp; refused (unchanged) unless later than the previous one.
+    pub fn push(&mut self, t_us: u64) -> Result<(), Error> {
+        if self.first_us.is_some() {
+            crate::sensors::check_time("period", Some(self.last_us), t_us)?;
+            self.intervals += 1;
+        } else {
+            self.first_us = Some(t_us);
+        }
+        self.last_us = t_us;
+        Ok(())
+    }
+
+    /// The mean period, s, once two timestamps are in.
+    pub fn period_s<T: Scalar>(&self) -> Option<T> {
+        let first = self.first_us?;
+        (self.intervals > 0)
+            .then(|| T::lit((self.last_us - first) as f64 * 1e-6 / self.intervals as f64))
+    }
+
+    /// Forgets every timestamp.
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+}

@@ -72,7 +72,7 @@ mod ring;
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
 pub use correlation::{AxisPeak, SlidingCorrelator};
 pub use fir::WhiteningFir;
-pub use fractional_delay::FractionalDelayLine;
+pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
 pub use grid::{MAX_GPS_DIFF_SPAN, MAX_INPUT_MAGNITUDE};
 
@@ -299,8 +299,8 @@ pub struct DelayUpdate<T: Scalar> {
     pub t_us: u64,
     /// Fused delay estimate, s.
     pub delay_s: T,
-    /// Its standard deviation as the GFA sees it, s (optimistic: successive
-    /// correlation measurements share most of their buffer).
+    /// Its standard deviation as the GFA models it (see the noise units of
+    /// [`DelayLoopConfig`]), s; not validated as a calibrated uncertainty.
     pub delay_std_s: T,
     /// True when this update re-acquired the delay (see
     /// [`DelayLoopConfig::reacquire_sigma`]).
