@@ -75,27 +75,41 @@ macro_rules! delay_tests {
                 rmse_after(&trace, 60.0, tau)
             }
 
-            /// Simulator-like: IMU 1 kHz, GPS 10 Hz, strong motion, true delay 0.2 s
-            /// (on the grid) and 0.237 s (between grid samples), start 0.1 s off.
+            /// RMS over seeds of the per-run RMSE, and the worst run.
+            fn over_seeds(scenario: fn() -> Scenario, motion_seed: u64, rms: [f64; 3], tau: f64, start_s: f64) -> (f64, f64) {
+                let runs: Vec<f64> = (1..=8u64)
+                    .map(|seed| {
+                        let motion = Motion::random(motion_seed + seed, 8, 0.05, 1.0, rms);
+                        constant_delay_rmse(scenario(), &motion, tau, seed, start_s)
+                    })
+                    .collect();
+                let rms = (runs.iter().map(|r| r * r).sum::<f64>() / runs.len() as f64).sqrt();
+                (rms, runs.iter().copied().fold(0.0, f64::max))
+            }
+
+            /// Simulator-like: IMU 1 kHz, GPS 10 Hz, strong motion (6/6/3 m/s^2 rms),
+            /// true delay 0.2 s (on the grid) and 0.237 s (between grid samples),
+            /// starting 0.1 s off; 8 motions and noise realizations each.
             #[test]
             fn recovers_constant_delay_simulator() {
-                let motion = Motion::random(3, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
-                for (tau, seed) in [(0.2, 1), (0.237, 5)] {
-                    let rmse = constant_delay_rmse(Scenario::simulator(), &motion, tau, seed, tau - 0.1);
-                    println!("simulator tau {tau}: RMSE over the last 60 s {:.2} ms", rmse * 1e3);
-                    assert!(rmse < 4e-3, "RMSE {rmse}");
+                for tau in [0.2, 0.237] {
+                    let (rms, worst) = over_seeds(Scenario::simulator, 30, [6.0, 6.0, 3.0], tau, tau - 0.1);
+                    println!("simulator tau {tau}: RMSE over the last 60 s, RMS of 8 runs {:.2} ms, worst {:.2} ms", rms * 1e3, worst * 1e3);
+                    assert!(rms < 3e-3 && worst < 5e-3, "RMSE {rms}, worst {worst}");
                 }
             }
 
-            /// Real-log-like: IMU 50 Hz with +-2 ms jitter, GPS 5 Hz, moderate
-            /// motion, delay 0.28 s and the 0.58 s of the log with 0.3 s added.
+            /// Real-log-like: IMU 50 Hz with +-2 ms jitter, GPS 5 Hz with +-12 ms
+            /// receive jitter, moderate motion (3/3/1.5 m/s^2 rms), delay 0.28 s and
+            /// the 0.58 s of the log with 0.3 s added.
             #[test]
             fn recovers_constant_delay_real_log_rates() {
-                let motion = Motion::random(9, 8, 0.05, 1.0, [3.0, 3.0, 1.5]);
-                for (tau, seed) in [(0.28, 3), (0.58, 4)] {
-                    let rmse = constant_delay_rmse(Scenario::real_log_like(), &motion, tau, seed, 0.2);
-                    println!("50 Hz / 5 Hz tau {tau}: RMSE over the last 60 s {:.2} ms", rmse * 1e3);
-                    assert!(rmse < 6e-3, "RMSE {rmse}");
+                for tau in [0.28, 0.58] {
+                    let (rms, worst) = over_seeds(Scenario::real_log_like, 40, [3.0, 3.0, 1.5], tau, 0.2);
+                    println!("50 Hz / 5 Hz tau {tau}: RMSE over the last 60 s, RMS of 8 runs {:.2} ms, worst {:.2} ms", rms * 1e3, worst * 1e3);
+                    // Noise-limited: the Cramer-Rao bound of a 50 s average at this
+                    // motion and 0.1 (m/s)^2 at 5 Hz is about 4.5 ms.
+                    assert!(rms < 7e-3 && worst < 12e-3, "RMSE {rms}, worst {worst}");
                 }
             }
 

@@ -56,7 +56,7 @@ impl<T: Scalar> Default for GainFusionConfig<T> {
             delay_min_s: T::zero(),
             delay_max_s: T::one(),
             initial_delay_s: T::lit(0.2),
-            initial_std_s: T::lit(0.1),
+            initial_std_s: T::lit(0.3),
         }
     }
 }

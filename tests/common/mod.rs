@@ -97,6 +97,9 @@ pub struct Scenario {
     pub gps_sigma: f64,
     /// IMU timestamp jitter, +- us (uniform).
     pub imu_jitter_us: f64,
+    /// GPS receive-time jitter, +- us (uniform), around the fix's epoch plus
+    /// the delay (the real log: std 7 ms, range +-20 ms).
+    pub gps_jitter_us: f64,
     pub seed: u64,
 }
 
@@ -109,6 +112,7 @@ impl Scenario {
             accel_sigma: 0.98,
             gps_sigma: 0.1f64.sqrt(),
             imu_jitter_us: 0.0,
+            gps_jitter_us: 0.0,
             seed: 7,
         }
     }
@@ -121,6 +125,7 @@ impl Scenario {
             accel_sigma: 0.98,
             gps_sigma: 0.1f64.sqrt(),
             imu_jitter_us: 2000.0,
+            gps_jitter_us: 12_000.0,
             seed: 11,
         }
     }
@@ -147,9 +152,11 @@ impl Scenario {
         let gps_dt = 1e6 / self.gps_hz;
         let n_gps = (self.duration_s * self.gps_hz) as u64;
         for k in 1..=n_gps {
-            let t_us = (k as f64 * gps_dt).round() as u64 + 137;
-            let t = t_us as f64 * 1e-6;
-            let v = motion.velocity(t - delay(t));
+            let epoch_us = k as f64 * gps_dt + 137.0;
+            let jitter = (rng.uniform() * 2.0 - 1.0) * self.gps_jitter_us;
+            let t_us = (epoch_us + jitter).round() as u64;
+            let epoch = epoch_us * 1e-6;
+            let v = motion.velocity(epoch - delay(epoch));
             events.push(Event::Gps(
                 t_us,
                 v.map(|x| x + self.gps_sigma * rng.normal()),
