@@ -317,6 +317,33 @@ pub struct DelayUpdate<T: Scalar> {
 /// (buffer + largest shift + the lead of the IMU stream over the GPS one,
 /// checked by [`DelayLoop::new`]). [`DefaultDelayLoop`] fits the default
 /// configuration.
+///
+/// ```
+/// use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig};
+/// use nalgebra::Vector3;
+///
+/// // Motion a(t) = [3 sin 1.3t, 2 cos 0.7t, sin 2.1t] m/s^2; the GPS velocity
+/// // describes it 0.15 s late. IMU at 100 Hz, GPS at 10 Hz, noise-free.
+/// let accel = |t: f64| Vector3::new(3.0 * (1.3 * t).sin(), 2.0 * (0.7 * t).cos(), (2.1 * t).sin());
+/// let velocity = |t: f64| {
+///     Vector3::new(-3.0 / 1.3 * (1.3 * t).cos(), 2.0 / 0.7 * (0.7 * t).sin(), -(2.1 * t).cos() / 2.1)
+/// };
+/// let mut config = DelayLoopConfig::<f64>::default();
+/// config.fusion.initial_delay_s = 0.4;
+/// let mut delay_loop = DefaultDelayLoop::<f64>::new(config)?;
+/// for k in 1..=4000u64 {
+///     let t_us = k * 10_000;
+///     let t = t_us as f64 * 1e-6;
+///     delay_loop.push_imu(t_us, accel(t))?;
+///     if k % 10 == 0 {
+///         if let Some(update) = delay_loop.push_gps(t_us, velocity(t - 0.15))? {
+///             assert!(update.axes.iter().any(|axis| axis.valid));
+///         }
+///     }
+/// }
+/// assert!((delay_loop.delay_s() - 0.15).abs() < 0.005);
+/// # Ok::<(), delaynav::Error>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize> {
     config: DelayLoopConfig<T>,
