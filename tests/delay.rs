@@ -139,6 +139,39 @@ macro_rules! delay_tests {
                 assert!(trace.updates.iter().any(|u| u.3), "the step should trigger a re-acquisition");
             }
 
+            /// The caller may push each GPS fix before the IMU samples leading up to
+            /// its receive time (here 0.3 s early in the call order): the GPS grid
+            /// samples wait for the IMU stream and the estimate is as good.
+            #[test]
+            fn gps_pushed_ahead_of_imu() {
+                let mut scenario = Scenario::simulator();
+                scenario.duration_s = 90.0;
+                let motion = Motion::random(33, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
+                let mut events = scenario.events(&motion, |_| 0.2);
+                events.sort_by_key(|e| match *e {
+                    Event::Imu(t, _) => (t, 1),
+                    Event::Gps(t, _) => (t.saturating_sub(300_000), 0),
+                });
+                let mut delay_loop = DefaultDelayLoop::<T>::new(start_at(0.1)).unwrap();
+                let mut errors = vec![];
+                for event in events {
+                    match event {
+                        Event::Imu(t, a) => delay_loop.push_imu(t, v3(a)).unwrap(),
+                        Event::Gps(t, v) => {
+                            if let Some(u) = delay_loop.push_gps(t, v3(v)).unwrap() {
+                                if t > 40_000_000 {
+                                    errors.push(u.delay_s as f64 - 0.2);
+                                }
+                            }
+                        }
+                    }
+                }
+                let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+                assert!(errors.len() > 400, "{} updates", errors.len());
+                assert!(rmse < 4e-3, "{rmse}");
+                assert_eq!(delay_loop.restarts(), 0);
+            }
+
             /// No motion (a(t) = 0, noise only): every V_i = 0 and the estimate
             /// stays exactly where it was.
             #[test]

@@ -154,8 +154,14 @@ pub struct SlidingCorrelator<T: Scalar, const BUF: usize, const LAGS: usize, con
     cross_shadow: [[T; LAGS]; 3],
     cross_shadow_count: usize,
     pairs: usize,
+    /// GPS grid samples waiting for the IMU stream to reach them.
+    pending: Ring<(u64, Vector3<T>), PENDING_GPS_SAMPLES>,
     multiply_adds: u64,
 }
+
+/// GPS grid samples that can wait for the IMU stream (1.28 s at 50 Hz): the
+/// caller may push a GPS fix before the IMU samples of the same instant.
+pub const PENDING_GPS_SAMPLES: usize = 64;
 
 impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     SlidingCorrelator<T, BUF, LAGS, HIST>
@@ -199,6 +205,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             cross_shadow: [[T::zero(); LAGS]; 3],
             cross_shadow_count: 0,
             pairs: 0,
+            pending: Ring::new((0, Vector3::zeros())),
             multiply_adds: 0,
         })
     }
@@ -220,6 +227,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.cross_shadow = [[T::zero(); LAGS]; 3];
         self.cross_shadow_count = 0;
         self.pairs = 0;
+        self.pending.clear();
     }
 
     /// True once the buffer holds `B` pairs.
@@ -247,16 +255,34 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.x.push(x);
         self.x_window.push((self.x_sums.sum, self.x_sums.squares));
         self.x_newest = Some(j);
+        self.pair_pending();
     }
 
-    /// Pairs the GPS grid sample `j` with the stored IMU samples `j - s` and
-    /// slides every sum. Returns false when the pair could not be formed (IMU
-    /// history too short or behind); a non-consecutive index restarts the
-    /// buffer.
-    pub fn push_y(&mut self, j: u64, y: Vector3<T>) -> bool {
+    /// Queues the GPS grid sample `j`; it is paired as soon as the IMU stream
+    /// reaches `j` (at once, normally: the GPS side lags). If more than
+    /// [`PENDING_GPS_SAMPLES`] wait, the oldest are dropped and the buffer
+    /// restarts.
+    pub fn push_y(&mut self, j: u64, y: Vector3<T>) {
+        self.pending.push((j, y));
+        self.pair_pending();
+    }
+
+    fn pair_pending(&mut self) {
+        while let (Some((j, y)), Some(x_newest)) = (self.pending.oldest(), self.x_newest) {
+            if j > x_newest {
+                break;
+            }
+            self.pending.pop_oldest();
+            self.pair(j, y);
+        }
+    }
+
+    /// Pairs the GPS grid sample `j` (`<=` the newest IMU index) with the
+    /// stored IMU samples `j - s` and slides every sum. Skipped while the IMU
+    /// history is too short; a non-consecutive index restarts the buffer.
+    fn pair(&mut self, j: u64, y: Vector3<T>) {
         let Some(x_newest) = self.x_newest.filter(|&n| n >= j) else {
-            self.reset_pairs();
-            return false;
+            return;
         };
         if self.y_newest.is_some_and(|n| j != n + 1) {
             self.reset_pairs();
@@ -269,7 +295,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             full = false;
         }
         if age + shift_max >= self.x.len() {
-            return false;
+            return;
         }
         let y_old = if full {
             self.y.get(self.buffer_len - 1)
@@ -304,7 +330,6 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.y.push(y);
         self.y_newest = Some(j);
         self.pairs = (self.pairs + 1).min(self.buffer_len);
-        true
     }
 
     /// Normalized correlation of `axis` at window index `lag`, and the IMU

@@ -70,7 +70,7 @@ mod grid;
 mod ring;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
-pub use correlation::{AxisPeak, SlidingCorrelator};
+pub use correlation::{AxisPeak, PENDING_GPS_SAMPLES, SlidingCorrelator};
 pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
@@ -487,9 +487,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.restarts += 1;
         }
         let correlator = &mut self.correlator;
-        self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
-            correlator.push_y(j, y);
-        });
+        self.gps_grid
+            .push(t_us, velocity_ned_m_s, &mut |j, y| correlator.push_y(j, y));
         self.last_gps_us = Some(t_us);
         self.fixes_since_update += 1;
         if self.fixes_since_update < self.config.fixes_per_update {

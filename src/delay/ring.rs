@@ -49,6 +49,23 @@ impl<E: Copy, const N: usize> Ring<E, N> {
         }
     }
 
+    /// Removes and returns the oldest value.
+    #[inline]
+    pub(crate) fn pop_oldest(&mut self) -> Option<E> {
+        if self.len == 0 {
+            return None;
+        }
+        let oldest = self.data[(self.head + N - self.len) % N];
+        self.len -= 1;
+        Some(oldest)
+    }
+
+    /// The oldest stored value.
+    #[inline]
+    pub(crate) fn oldest(&self) -> Option<E> {
+        self.len.checked_sub(1).and_then(|age| self.get(age))
+    }
+
     /// Forgets every value.
     #[inline]
     pub(crate) fn clear(&mut self) {
