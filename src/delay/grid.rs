@@ -320,3 +320,74 @@ pub(crate) fn admit_sample<T: Scalar>(
     check_time(stream, previous_us, t_us)?;
     Ok(previous_us.is_some_and(|p| T::lit((t_us - p) as f64 * 1e-6) > max_gap_s))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The IMU and GPS paths have no relative lag: a ramp acceleration
+    /// `a = c t` fed as jittered 50 Hz IMU samples, and the matching velocity
+    /// `v = c t^2 / 2` fed as jittered 5 Hz GPS fixes, give the same grid
+    /// samples once the smoothing transients are gone (bin means at their
+    /// mean time, differences at their midpoint, linear interpolation: all
+    /// exact for these signals).
+    #[test]
+    fn imu_and_gps_paths_agree_on_a_ramp() {
+        let c = 0.7;
+        let period_us = 20_000;
+        for span in [1, 2, 3] {
+            let mut imu = ImuToGrid::<f64>::new(period_us, 1.0);
+            let mut gps = GpsToGrid::<f64>::new(period_us, span, 1.0);
+            let mut x = std::collections::BTreeMap::new();
+            let mut y = std::collections::BTreeMap::new();
+            let mut seed = 1u64;
+            let mut jitter = |amplitude: i64| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((seed >> 33) as i64 % (2 * amplitude + 1)) - amplitude
+            };
+            for k in 1..3000u64 {
+                let t_us = (1_000_000 + k as i64 * 20_000 + jitter(2_000)) as u64;
+                let t = t_us as f64 * 1e-6;
+                imu.push(t_us, Vector3::repeat(c * t), &mut |j, v| {
+                    x.insert(j, v[0]);
+                });
+            }
+            for k in 1..300u64 {
+                let t_us = (1_000_000 + k as i64 * 200_000 + jitter(20_000)) as u64;
+                let t = t_us as f64 * 1e-6;
+                gps.push(t_us, Vector3::repeat(c * t * t / 2.0), &mut |j, v| {
+                    y.insert(j, v[0]);
+                });
+            }
+            let first = *y.keys().next().unwrap();
+            let mut compared = 0;
+            for (j, yv) in y.range(first + 500..) {
+                if let Some(xv) = x.get(j) {
+                    assert!((xv - yv).abs() < 1e-5, "span {span}, j {j}: {xv} vs {yv}");
+                    compared += 1;
+                }
+            }
+            assert!(compared > 1500, "{compared}");
+        }
+    }
+
+    /// Each grid index is emitted once, in order, without gaps.
+    #[test]
+    fn grid_indices_are_consecutive() {
+        let mut imu = ImuToGrid::<f32>::new(20_000, 1.0);
+        let mut last: Option<u64> = None;
+        for k in 1..2000u64 {
+            // 1 kHz with an uneven pattern of intervals.
+            let t_us = k * 1000 + (k % 7) * 50;
+            imu.push(t_us, Vector3::zeros(), &mut |j, _| {
+                if let Some(l) = last {
+                    assert_eq!(j, l + 1);
+                }
+                last = Some(j);
+            });
+        }
+        assert!(last.unwrap() > 90);
+    }
+}
