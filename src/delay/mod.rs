@@ -31,7 +31,21 @@
 //!    buffer is at least `min_accel_variance_m2_s4`: without motion the peak
 //!    position says nothing about the delay.
 //! 4. Fusion ([`gain_fusion`]): Table 2, corrected, once per GPS fix (or every
-//!    `fixes_per_update` fixes).
+//!    `fixes_per_update` fixes), with `Q_f` and `R_i` derived per iteration
+//!    from rate-independent settings, `R_i` scaled by each axis' motion, and
+//!    a re-acquisition after a sustained disagreement (see
+//!    [`DelayLoopConfig`]).
+//!
+//! | paper | implemented by |
+//! |---|---|
+//! | eq. (13), correlation per axis | [`SlidingCorrelator::push_y`], [`SlidingCorrelator::peaks`] |
+//! | eq. (14), GPS acceleration and its `n dt / 2` lag | [`DelayLoop::push_gps`] (grid stage) |
+//! | Table 2, GFA | [`GainFusion::step`] |
+//! | validity `V_i` | [`DelayLoop::push_gps`] |
+//! | eq. (15), per-sensor delays | [`SensorDelays::new`], [`DelayLoop::sensor_delays`] |
+//! | sec. 2.2.4, Lagrange fractional delay | [`FractionalDelayLine::read`] |
+//! | sec. 2.2.4, whitening FIR and its delay | [`WhiteningFir`], [`WhiteningFir::group_delay_s`] |
+//! | sec. 2.2.2, Figure 3, offline calibration | [`OfflineCalibrator::calibrate`] |
 //!
 //! # The shift window spans the delay range
 //!
