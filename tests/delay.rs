@@ -172,6 +172,58 @@ macro_rules! delay_tests {
                 assert_eq!(delay_loop.restarts(), 0);
             }
 
+            /// The sliding sums (with their periodic shadow resync) give the same
+            /// peaks as a brute-force Pearson correlation over the same samples,
+            /// after many times the buffer length (no drift), in both precisions.
+            #[test]
+            fn sliding_correlation_matches_brute_force() {
+                const B: usize = 40;
+                const L: usize = 12;
+                let shift_min = 3;
+                let mut correlator = SlidingCorrelator::<T, B, L, 80>::new(B, shift_min, L).unwrap();
+                let mut rng = Lcg(17);
+                let mut xs: Vec<[f64; 3]> = vec![];
+                let mut ys: Vec<[f64; 3]> = vec![];
+                let delay = 7usize;
+                let mut compared = 0;
+                for j in 0..2000usize {
+                    // A smooth-ish random walk plus an offset, so means matter.
+                    let prev = xs.last().copied().unwrap_or([5.0, -3.0, 0.0]);
+                    let x = prev.map(|p| 0.9 * p + rng.normal() + 0.5);
+                    xs.push(x);
+                    correlator.push_x(j as u64, v3(x));
+                    let y = if j >= delay { xs[j - delay].map(|v| v + 0.5 * rng.normal()) } else { [0.0; 3] };
+                    ys.push(y);
+                    correlator.push_y(j as u64, v3(y));
+                    let Some(peaks) = correlator.peaks() else { continue };
+                    if j % 97 != 0 {
+                        continue;
+                    }
+                    for axis in 0..3 {
+                        let r = |lag: usize| {
+                            let s = shift_min + lag;
+                            let pairs: Vec<(f64, f64)> = (j + 1 - B..=j).map(|i| (xs[i - s][axis], ys[i][axis])).collect();
+                            let n = B as f64;
+                            let (mx, my) = (pairs.iter().map(|p| p.0).sum::<f64>() / n, pairs.iter().map(|p| p.1).sum::<f64>() / n);
+                            let cov: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+                            let vx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+                            let vy: f64 = pairs.iter().map(|p| (p.1 - my).powi(2)).sum();
+                            cov / (vx * vy).sqrt()
+                        };
+                        let best = (0..L).max_by(|&a, &b| r(a).partial_cmp(&r(b)).unwrap()).unwrap();
+                        let tol = if TOL > 1e-6 { 2e-3 } else { 1e-9 };
+                        assert!((peaks[axis].peak as f64 - r(best)).abs() < tol, "j {j} axis {axis}");
+                        let (left, right) = (r(best - 1), r(best + 1));
+                        let offset = 0.5 * (left - right) / (left - 2.0 * r(best) + right);
+                        let expected = (shift_min + best) as f64 + offset;
+                        assert!((peaks[axis].shift_samples as f64 - expected).abs() < 50.0 * tol, "j {j} axis {axis}");
+                        assert_eq!(shift_min + best, delay);
+                        compared += 1;
+                    }
+                }
+                assert!(compared > 15, "{compared}");
+            }
+
             /// No motion (a(t) = 0, noise only): every V_i = 0 and the estimate
             /// stays exactly where it was.
             #[test]

@@ -8,8 +8,12 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use common::{Event, Motion, Scenario};
-use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig, FractionalDelayLine, WhiteningFir};
+use delaynav::delay::{
+    CalibrationConfig, DefaultCalibrator, DefaultDelayLoop, DelayLoopConfig, FractionalDelayLine,
+    WhiteningFir,
+};
 use delaynav::scalar::Scalar;
+use delaynav::{Gps, GpsPosition, Imu};
 use nalgebra::{SVector, Vector3};
 
 struct Counting;
@@ -41,6 +45,8 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
     let mut delay_loop = DefaultDelayLoop::<T>::new(DelayLoopConfig::default()).unwrap();
     let mut line = FractionalDelayLine::<T, 3, 512, 3>::new();
     let mut fir = WhiteningFir::<T, 31>::low_pass(T::lit(20.0), T::lit(1000.0)).unwrap();
+    let mut calibrator =
+        Box::new(DefaultCalibrator::<T>::new(CalibrationConfig::default()).unwrap());
     let v3 = |a: [f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
 
     let before = ALLOCATIONS.load(Ordering::SeqCst);
@@ -55,15 +61,35 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
                     std::hint::black_box(line.read(d).unwrap());
                 }
                 delay_loop.push_imu(t, v3(a)).unwrap();
+                let specific_force = v3([a[0], a[1], a[2] - 9.80665]);
+                calibrator
+                    .push_imu(&Imu {
+                        t_us: t,
+                        gyro_rad_s: Vector3::zeros(),
+                        accel_m_s2: specific_force,
+                    })
+                    .unwrap();
             }
             Event::Gps(t, v) => {
                 if delay_loop.push_gps(t, v3(v)).unwrap().is_some() {
                     updates += 1;
                 }
+                calibrator
+                    .push_gps(&Gps {
+                        t_us: t,
+                        position: GpsPosition::Ned(Vector3::zeros()),
+                        velocity_ned_m_s: v3(v),
+                        horizontal_accuracy_m: None,
+                        vertical_accuracy_m: None,
+                        speed_accuracy_m_s: None,
+                    })
+                    .unwrap();
             }
         }
     }
+    let calibration = calibrator.result().unwrap();
     let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    assert!((calibration.delay_s.as_f64() - 0.2).abs() < 0.05);
     assert!(
         updates > 50,
         "the loop must have run its updates ({updates})"

@@ -99,13 +99,14 @@ fn attitude_at(att: &[[f64; 4]], t: f64) -> [f64; 3] {
 }
 
 /// Final delay estimate of the loop with `added_s` added to every GPS time.
-fn loop_delay(log: &Log, added_s: f64) -> (f64, usize) {
+fn loop_delay(log: &Log, added_s: f64) -> (f64, usize, usize) {
     let mut config = DelayLoopConfig::<f64>::default();
     config.fusion.initial_delay_s = 0.2;
     let mut delay_loop = DefaultDelayLoop::<f64>::new(config).unwrap();
     let added_us = (added_s * 1e6) as u64;
     let mut gps = log.gps.iter().peekable();
     let mut valid_updates = 0;
+    let mut reacquisitions = 0;
     for imu in &log.imu {
         while let Some(fix) = gps.next_if(|g| g.t_us + added_us <= imu.t_us) {
             if let Some(u) = delay_loop
@@ -113,6 +114,7 @@ fn loop_delay(log: &Log, added_s: f64) -> (f64, usize) {
                 .unwrap()
             {
                 valid_updates += u.axes.iter().any(|a| a.valid) as usize;
+                reacquisitions += u.reacquired as usize;
             }
         }
         let [roll, pitch, yaw] = attitude_at(&log.att, imu.t_us as f64 * 1e-6);
@@ -120,18 +122,20 @@ fn loop_delay(log: &Log, added_s: f64) -> (f64, usize) {
         let a = rotation_matrix(q.quaternion()) * imu.accel_m_s2 + Vector3::new(0.0, 0.0, 9.80665);
         delay_loop.push_imu(imu.t_us, a).unwrap();
     }
-    (delay_loop.delay_s(), valid_updates)
+    (delay_loop.delay_s(), valid_updates, reacquisitions)
 }
 
 #[test]
 fn delay_loop_on_real_log() {
     let Some(dir) = log_dir() else { return };
     let log = load(dir);
-    let (delay, valid) = loop_delay(&log, 0.0);
-    println!("real log: loop delay {delay:.4} s ({valid} updates with a valid axis)");
+    let (delay, valid, reacquisitions) = loop_delay(&log, 0.0);
+    println!(
+        "real log: loop delay {delay:.4} s ({valid} updates with a valid axis, {reacquisitions} re-acquisitions)"
+    );
     assert!(valid > 100);
     assert!((0.24..=0.33).contains(&delay), "{delay}");
-    let (delayed, _) = loop_delay(&log, 0.3);
+    let (delayed, _, _) = loop_delay(&log, 0.3);
     println!(
         "real log + 0.3 s: loop delay {delayed:.4} s, difference {:.4} s",
         delayed - delay
