@@ -5,7 +5,7 @@ mod common;
 
 use common::{Event, Lcg, Motion, Scenario};
 use delaynav::delay::*;
-use delaynav::{Error, Gps, GpsPosition, Imu};
+use delaynav::{Error, Gps, Imu};
 use nalgebra::{SVector, Vector3};
 
 /// The loop's trace: (time s, delay s, validities) per update.
@@ -532,14 +532,7 @@ macro_rules! delay_tests {
                             gyro_rad_s: v3([0.0; 3].map(|_: f64| 0.01 * rng.normal())),
                             accel_m_s2: v3([a[0], a[1], a[2] - 9.80665]),
                         }),
-                        Event::Gps(t, v) => gps.push(Gps {
-                            t_us: t,
-                            position: GpsPosition::Ned(Vector3::zeros()),
-                            velocity_ned_m_s: v3(v),
-                            horizontal_accuracy_m: None,
-                            vertical_accuracy_m: None,
-                            speed_accuracy_m_s: None,
-                        }),
+                        Event::Gps(t, v) => gps.push(common::velocity_fix(t, v3(v))),
                     }
                 }
                 (imu, gps)

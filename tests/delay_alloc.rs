@@ -8,12 +8,12 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use common::{Event, Motion, Scenario};
+use delaynav::Imu;
 use delaynav::delay::{
     CalibrationConfig, DefaultCalibrator, DefaultDelayLoop, DelayLoopConfig, FractionalDelayLine,
     WhiteningFir,
 };
 use delaynav::scalar::Scalar;
-use delaynav::{Gps, GpsPosition, Imu};
 use nalgebra::{SVector, Vector3};
 
 struct Counting;
@@ -75,14 +75,7 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
                     updates += 1;
                 }
                 calibrator
-                    .push_gps(&Gps {
-                        t_us: t,
-                        position: GpsPosition::Ned(Vector3::zeros()),
-                        velocity_ned_m_s: v3(v),
-                        horizontal_accuracy_m: None,
-                        vertical_accuracy_m: None,
-                        speed_accuracy_m_s: None,
-                    })
+                    .push_gps(&common::velocity_fix(t, v3(v)))
                     .unwrap();
             }
         }

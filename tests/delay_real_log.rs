@@ -5,11 +5,13 @@
 //! the offline calibration (IMU-only attitude) finds the rough delay.
 //! Skipped, with a message, when the log is absent.
 
+mod common;
+
 use std::path::PathBuf;
 
 use delaynav::delay::{CalibrationConfig, DefaultCalibrator, DefaultDelayLoop, DelayLoopConfig};
 use delaynav::geo::{quaternion_from_euler, rotation_matrix, wrap_pi};
-use delaynav::{Gps, GpsPosition, Imu};
+use delaynav::{Gps, Imu};
 use nalgebra::Vector3;
 
 const FLIGHT: (f64, f64) = (75.0, 225.0);
@@ -63,14 +65,7 @@ fn load(dir: PathBuf) -> Log {
     let gps = rows(dir.join("gps.csv"))
         .into_iter()
         .filter(|r| in_flight(r[0]) && r[3] >= 3.0)
-        .map(|r| Gps {
-            t_us: us(r[0]),
-            position: GpsPosition::Ned(Vector3::zeros()),
-            velocity_ned_m_s: Vector3::new(r[12], r[13], r[14]),
-            horizontal_accuracy_m: None,
-            vertical_accuracy_m: None,
-            speed_accuracy_m_s: None,
-        })
+        .map(|r| common::velocity_fix(us(r[0]), Vector3::new(r[12], r[13], r[14])))
         .collect();
     let att = rows(dir.join("att.csv"))
         .into_iter()

@@ -170,3 +170,18 @@ impl Scenario {
         events
     }
 }
+
+/// A GPS fix carrying only a velocity (the delay loop reads nothing else).
+pub fn velocity_fix<T: delaynav::Scalar>(
+    t_us: u64,
+    velocity: nalgebra::Vector3<T>,
+) -> delaynav::Gps<T> {
+    delaynav::Gps {
+        t_us,
+        position: delaynav::GpsPosition::Ned(nalgebra::Vector3::zeros()),
+        velocity_ned_m_s: velocity,
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    }
+}
