@@ -224,6 +224,24 @@ macro_rules! delay_tests {
                 assert!(compared > 15, "{compared}");
             }
 
+            /// Updating every third fix: a third of the updates, same accuracy
+            /// (the noise settings are per second and per buffer, not per update).
+            #[test]
+            fn update_every_third_fix() {
+                let mut scenario = Scenario::simulator();
+                scenario.duration_s = 120.0;
+                scenario.seed = 2;
+                let motion = Motion::random(32, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
+                let mut every = start_at(0.1);
+                every.fixes_per_update = 3;
+                let sparse = run(&scenario, &motion, |_| 0.2, every);
+                let dense = run(&scenario, &motion, |_| 0.2, start_at(0.1));
+                let ratio = dense.updates.len() as f64 / sparse.updates.len() as f64;
+                assert!((ratio - 3.0).abs() < 0.05, "{ratio}");
+                let (rmse_sparse, rmse_dense) = (rmse_after(&sparse, 60.0, 0.2), rmse_after(&dense, 60.0, 0.2));
+                assert!(rmse_sparse < 4e-3 && (rmse_sparse - rmse_dense).abs() < 2e-3, "{rmse_sparse} vs {rmse_dense}");
+            }
+
             /// No motion (a(t) = 0, noise only): every V_i = 0 and the estimate
             /// stays exactly where it was.
             #[test]
