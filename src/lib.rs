@@ -13,6 +13,7 @@
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
 //! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
+//! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
 //!
 //! ## Conventions
 //! Navigation frame NED, body frame FRD, quaternions Hamilton scalar-first
@@ -27,6 +28,8 @@ pub mod estimate;
 pub mod geo;
 pub mod scalar;
 pub mod sensors;
+#[cfg(feature = "sim")]
+pub mod sim;
 
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
