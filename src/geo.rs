@@ -96,7 +96,10 @@ pub fn quaternion_from_rotation_vector<T: Scalar>(theta: &Vector3<T>) -> UnitQua
     let half = T::lit(0.5);
     let (w, k) = if angle2 < T::lit(1e-8) {
         // cos(a/2) ~ 1 - a²/8, sin(a/2)/a ~ 1/2 - a²/48
-        (T::one() - angle2 / T::lit(8.0), half - angle2 / T::lit(48.0))
+        (
+            T::one() - angle2 / T::lit(8.0),
+            half - angle2 / T::lit(48.0),
+        )
     } else {
         let angle = angle2.sqrt();
         let (s, c) = (angle * half).sin_cos();

@@ -261,14 +261,21 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
 
 /// Checks a new timestamp of one stream against the previous accepted one.
 #[allow(dead_code)] // used by the estimators
-pub(crate) fn check_time(stream: &'static str, previous_us: Option<u64>, got_us: u64) -> Result<(), Error> {
+pub(crate) fn check_time(
+    stream: &'static str,
+    previous_us: Option<u64>,
+    got_us: u64,
+) -> Result<(), Error> {
     match previous_us {
         Some(p) if got_us < p => Err(Error::TimeWentBackwards {
             stream,
             previous_us: p,
             got_us,
         }),
-        Some(p) if got_us == p => Err(Error::DuplicateTimestamp { stream, t_us: got_us }),
+        Some(p) if got_us == p => Err(Error::DuplicateTimestamp {
+            stream,
+            t_us: got_us,
+        }),
         _ => Ok(()),
     }
 }

@@ -16,9 +16,11 @@ use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
 /// Header of `imu.csv`.
-pub const IMU_HEADER: &str = "t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2";
+pub const IMU_HEADER: &str =
+    "t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2";
 /// Header of `gps.csv` with NED positions.
-pub const GPS_NED_HEADER: &str = "t_us,pos_n_m,pos_e_m,pos_d_m,vel_n_m_s,vel_e_m_s,vel_d_m_s,h_acc_m,v_acc_m,s_acc_m_s";
+pub const GPS_NED_HEADER: &str =
+    "t_us,pos_n_m,pos_e_m,pos_d_m,vel_n_m_s,vel_e_m_s,vel_d_m_s,h_acc_m,v_acc_m,s_acc_m_s";
 /// Header of `gps.csv` with geodetic positions.
 pub const GPS_GEODETIC_HEADER: &str =
     "t_us,lat_deg,lon_deg,alt_m,vel_n_m_s,vel_e_m_s,vel_d_m_s,h_acc_m,v_acc_m,s_acc_m_s";
@@ -76,7 +78,11 @@ impl CsvLogWriter {
 
     fn write_imu(&mut self, s: &Imu<f64>) -> io::Result<()> {
         let (g, a) = (s.gyro_rad_s, s.accel_m_s2);
-        writeln!(self.imu, "{},{},{},{},{},{},{}", s.t_us, g.x, g.y, g.z, a.x, a.y, a.z)
+        writeln!(
+            self.imu,
+            "{},{},{},{},{},{},{}",
+            s.t_us, g.x, g.y, g.z, a.x, a.y, a.z
+        )
     }
 
     fn write_mag(&mut self, m: &Mag<f64>) -> io::Result<()> {
@@ -88,7 +94,11 @@ impl CsvLogWriter {
         let geodetic = matches!(fix.position, GpsPosition::Geodetic(_));
         match self.gps_geodetic {
             None => {
-                let header = if geodetic { GPS_GEODETIC_HEADER } else { GPS_NED_HEADER };
+                let header = if geodetic {
+                    GPS_GEODETIC_HEADER
+                } else {
+                    GPS_NED_HEADER
+                };
                 writeln!(self.gps, "{header}")?;
                 self.gps_geodetic = Some(geodetic);
             }
@@ -124,7 +134,10 @@ impl CsvLogWriter {
     fn write_truth(&mut self, t: &Truth) -> io::Result<()> {
         let q = t.attitude.quaternion();
         let e = t.euler_rad;
-        let mut line = format!("{},{},{},{},{},{},{},{}", t.t_us, q.w, q.i, q.j, q.k, e.x, e.y, e.z);
+        let mut line = format!(
+            "{},{},{},{},{},{},{},{}",
+            t.t_us, q.w, q.i, q.j, q.k, e.x, e.y, e.z
+        );
         for v in [
             t.position_m,
             t.velocity_m_s,

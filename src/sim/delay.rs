@@ -70,7 +70,11 @@ impl DelayProfile {
                 reason: "must be finite",
             });
         }
-        if self.steps.iter().any(|s| !s.at_s.is_finite() || !s.change_s.is_finite()) {
+        if self
+            .steps
+            .iter()
+            .any(|s| !s.at_s.is_finite() || !s.change_s.is_finite())
+        {
             return Err(InvalidConfig {
                 field: "delay.steps",
                 reason: "times and changes must be finite",
@@ -92,7 +96,12 @@ impl DelayProfile {
 
     /// The delay at `t_s` with a jitter sample added, clamped to `[0, 1]`.
     pub fn with_jitter_s(&self, t_s: f64, jitter_s: f64) -> f64 {
-        let steps: f64 = self.steps.iter().filter(|s| s.at_s <= t_s).map(|s| s.change_s).sum();
+        let steps: f64 = self
+            .steps
+            .iter()
+            .filter(|s| s.at_s <= t_s)
+            .map(|s| s.change_s)
+            .sum();
         (self.initial_s + self.drift_s_per_s * t_s + steps + jitter_s).clamp(0.0, MAX_DELAY_S)
     }
 }

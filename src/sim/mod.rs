@@ -190,7 +190,13 @@ fn normal3(rng: &mut ChaCha8Rng, std: f64) -> Vector3<f64> {
 }
 
 fn uniform3(rng: &mut ChaCha8Rng, max: f64) -> Vector3<f64> {
-    Vector3::from_fn(|_, _| if max > 0.0 { rng.random_range(-max..=max) } else { 0.0 })
+    Vector3::from_fn(|_, _| {
+        if max > 0.0 {
+            rng.random_range(-max..=max)
+        } else {
+            0.0
+        }
+    })
 }
 
 /// Time of sample `n` of a stream at `rate_hz`, microseconds.
@@ -238,7 +244,9 @@ impl Simulation {
         let vibration_phases = sensors
             .vibration
             .iter()
-            .map(|_| core::array::from_fn(|_| vibration_rng.random_range(0.0..core::f64::consts::TAU)))
+            .map(|_| {
+                core::array::from_fn(|_| vibration_rng.random_range(0.0..core::f64::consts::TAU))
+            })
             .collect();
         Ok(Self {
             frame: LocalFrame::new(sensors.origin),
@@ -286,7 +294,13 @@ impl Simulation {
     fn vibration(&self, t_s: f64) -> (Vector3<f64>, Vector3<f64>) {
         let mut gyro = Vector3::zeros();
         let mut accel = Vector3::zeros();
-        for (h, phases) in self.config.sensors.vibration.iter().zip(&self.vibration_phases) {
+        for (h, phases) in self
+            .config
+            .sensors
+            .vibration
+            .iter()
+            .zip(&self.vibration_phases)
+        {
             let arg = core::f64::consts::TAU * h.frequency_hz * t_s;
             for axis in 0..3 {
                 gyro[axis] += h.gyro_amplitude_rad_s * (arg + phases[axis]).sin();
@@ -301,8 +315,14 @@ impl Simulation {
         let t_s = t_us as f64 * 1e-6;
         if let Some(prev) = self.last_imu_us {
             let dt = (t_us - prev) as f64 * 1e-6;
-            self.gyro_bias += normal3(&mut self.bias_walk_rng, sensors.gyro_bias_walk_rad_s_sqrt_s * dt.sqrt());
-            self.accel_bias += normal3(&mut self.bias_walk_rng, sensors.accel_bias_walk_m_s2_sqrt_s * dt.sqrt());
+            self.gyro_bias += normal3(
+                &mut self.bias_walk_rng,
+                sensors.gyro_bias_walk_rad_s_sqrt_s * dt.sqrt(),
+            );
+            self.accel_bias += normal3(
+                &mut self.bias_walk_rng,
+                sensors.accel_bias_walk_m_s2_sqrt_s * dt.sqrt(),
+            );
         }
         self.last_imu_us = Some(t_us);
         let motion = self.trajectory.state(t_s);
@@ -358,12 +378,21 @@ impl Simulation {
         let delay_s = delay.with_jitter_s(t_s, jitter);
         let truth = self.trajectory.kinematics(t_s - delay_s);
         let sensors = &self.config.sensors;
-        let position_ned = truth.position_m + normal3(&mut self.gps_position_rng, sensors.gps_position_var_m2.sqrt());
-        let velocity =
-            truth.velocity_m_s + normal3(&mut self.gps_velocity_rng, sensors.gps_velocity_var_m2_s2.sqrt());
+        let position_ned = truth.position_m
+            + normal3(
+                &mut self.gps_position_rng,
+                sensors.gps_position_var_m2.sqrt(),
+            );
+        let velocity = truth.velocity_m_s
+            + normal3(
+                &mut self.gps_velocity_rng,
+                sensors.gps_velocity_var_m2_s2.sqrt(),
+            );
         let position = match sensors.gps_position_output {
             GpsPositionOutput::Ned => GpsPosition::Ned(position_ned),
-            GpsPositionOutput::Geodetic => GpsPosition::Geodetic(self.frame.to_geodetic(&position_ned)),
+            GpsPositionOutput::Geodetic => {
+                GpsPosition::Geodetic(self.frame.to_geodetic(&position_ned))
+            }
         };
         let (h_acc, v_acc, s_acc) = (
             sensors.gps_position_var_m2.sqrt(),
@@ -396,7 +425,10 @@ impl Iterator for Simulation {
         let mag_t = sample_time_us(self.next_mag, sensors.mag_rate_hz);
         let gps_t = sample_time_us(self.next_gps, sensors.gps_rate_hz);
         // Ties: IMU, then magnetometer, then GPS.
-        let earliest = [imu_t, mag_t, gps_t].into_iter().filter(|&t| t <= end).min()?;
+        let earliest = [imu_t, mag_t, gps_t]
+            .into_iter()
+            .filter(|&t| t <= end)
+            .min()?;
         if imu_t == earliest {
             self.next_imu += 1;
             Some(self.imu_event(imu_t))
@@ -415,25 +447,31 @@ impl Iterator for Simulation {
 ///
 /// A fix's velocity `v(t_j - tau) + n` depends on the delay through
 /// `dv/dtau = -a(t_j - tau)`; with white noise of variance `sigma_v^2` per
-/// axis, the Fisher information of the fixes received in the `window_s`
-/// seconds up to and including fix `k` is
+/// axis, the Fisher information of the fixes received in the window
+/// up to and including fix `k` is
 /// `F_k = sum_j |a(t_j - tau_j)|^2 / sigma_v^2`, and no unbiased estimate
 /// built from them can beat `1 / sqrt(F_k)`. Returns the RMS of that bound
-/// over the fixes received at or after `skip_s`, `None` when no fix is
-/// scored or one has no information (no acceleration, or zero noise gives
-/// a zero bound, which is returned as such).
+/// over the fixes received at or after `skip_us`, `None` when no fix is
+/// scored or one has no information (no acceleration); zero noise gives
+/// a zero bound.
 ///
-/// `fixes` are `(receive time in seconds, true acceleration at validity)`
-/// in time order.
-pub fn delay_bound_s(fixes: &[(f64, Vector3<f64>)], velocity_var_m2_s2: f64, window_s: f64, skip_s: f64) -> Option<f64> {
+/// `fixes` are `(receive time in microseconds, true acceleration at
+/// validity)` in time order; the window holds the fixes received in
+/// `(t_k - window_us, t_k]`.
+pub fn delay_bound_s(
+    fixes: &[(u64, Vector3<f64>)],
+    velocity_var_m2_s2: f64,
+    window_us: u64,
+    skip_us: u64,
+) -> Option<f64> {
     let mut sum_sq = 0.0;
     let mut count = 0usize;
     let mut first = 0usize;
     for (k, &(t_k, _)) in fixes.iter().enumerate() {
-        while fixes[first].0 <= t_k - window_s {
+        while fixes[first].0 + window_us <= t_k {
             first += 1;
         }
-        if t_k < skip_s {
+        if t_k < skip_us {
             continue;
         }
         let information: f64 = fixes[first..=k].iter().map(|f| f.1.norm_squared()).sum();

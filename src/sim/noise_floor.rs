@@ -76,14 +76,27 @@ fn axis_covariance(sensors: &SensorConfig, f: f64, with_tilt: bool) -> Matrix3<f
     let dt = 1.0 / sensors.imu_rate_hz;
     let steps = (sensors.imu_rate_hz / sensors.gps_rate_hz).round().max(1.0) as usize;
     let var_a = sensors.accel_noise_std_m_s2().powi(2);
-    let var_g = if with_tilt { sensors.gyro_noise_var_rad2_s2 } else { 0.0 };
+    let var_g = if with_tilt {
+        sensors.gyro_noise_var_rad2_s2
+    } else {
+        0.0
+    };
     let phi = Matrix3::new(1.0, dt, f * dt * dt / 2.0, 0.0, 1.0, f * dt, 0.0, 0.0, 1.0);
     let gamma_a = Vector3::new(dt * dt / 2.0, dt, 0.0);
     let gamma_g = Vector3::new(f * dt.powi(3) / 6.0, f * dt * dt / 2.0, dt);
     let q = gamma_a * gamma_a.transpose() * var_a + gamma_g * gamma_g.transpose() * var_g;
     let h = Matrix2x3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0);
-    let r = Matrix2::new(sensors.gps_position_var_m2, 0.0, 0.0, sensors.gps_velocity_var_m2_s2);
-    let mut p = Matrix3::from_diagonal(&Vector3::new(100.0, 1.0, if with_tilt { 0.01 } else { 0.0 }));
+    let r = Matrix2::new(
+        sensors.gps_position_var_m2,
+        0.0,
+        0.0,
+        sensors.gps_velocity_var_m2_s2,
+    );
+    let mut p = Matrix3::from_diagonal(&Vector3::new(
+        100.0,
+        1.0,
+        if with_tilt { 0.01 } else { 0.0 },
+    ));
     let mut previous = Matrix3::zeros();
     for _ in 0..MAX_CYCLES {
         let mut mean = Matrix3::zeros();

@@ -175,8 +175,14 @@ impl SensorConfig {
             (self.mag_noise_var, "mag_noise_var"),
             (self.gyro_bias_max_rad_s, "gyro_bias_max_rad_s"),
             (self.accel_bias_max_g, "accel_bias_max_g"),
-            (self.gyro_bias_walk_rad_s_sqrt_s, "gyro_bias_walk_rad_s_sqrt_s"),
-            (self.accel_bias_walk_m_s2_sqrt_s, "accel_bias_walk_m_s2_sqrt_s"),
+            (
+                self.gyro_bias_walk_rad_s_sqrt_s,
+                "gyro_bias_walk_rad_s_sqrt_s",
+            ),
+            (
+                self.accel_bias_walk_m_s2_sqrt_s,
+                "accel_bias_walk_m_s2_sqrt_s",
+            ),
             (self.gps_position_var_m2, "gps_position_var_m2"),
             (self.gps_velocity_var_m2_s2, "gps_velocity_var_m2_s2"),
         ];

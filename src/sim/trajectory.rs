@@ -199,14 +199,17 @@ impl TrajectoryConfig {
                 });
             }
         }
-        if !positive(self.manoeuvre_period_s) || !positive(self.taper_s) || 2.0 * self.taper_s > self.manoeuvre_period_s
+        if !positive(self.manoeuvre_period_s)
+            || !positive(self.taper_s)
+            || 2.0 * self.taper_s > self.manoeuvre_period_s
         {
             return Err(InvalidConfig {
                 field: "manoeuvre_period_s",
                 reason: "must be positive and at least twice taper_s",
             });
         }
-        if !positive(self.chirp_start_hz) || !(self.chirp_end_hz.is_finite() && self.chirp_end_hz > self.chirp_start_hz)
+        if !positive(self.chirp_start_hz)
+            || !(self.chirp_end_hz.is_finite() && self.chirp_end_hz > self.chirp_start_hz)
         {
             return Err(InvalidConfig {
                 field: "chirp_end_hz",
@@ -219,7 +222,10 @@ impl TrajectoryConfig {
                 reason: "must be finite and above 1",
             });
         }
-        if !self.yaw_offset_rad.is_finite() || !self.yaw_amplitude_rad.is_finite() || !positive(self.yaw_period_s) {
+        if !self.yaw_offset_rad.is_finite()
+            || !self.yaw_amplitude_rad.is_finite()
+            || !positive(self.yaw_period_s)
+        {
             return Err(InvalidConfig {
                 field: "yaw_period_s",
                 reason: "yaw terms must be finite, the period positive",
@@ -397,7 +403,8 @@ impl Trajectory {
         let taper = [
             rise[0] * fall[0],
             rise[1] * fall[0] / r - rise[0] * fall[1] / r,
-            rise[2] * fall[0] / (r * r) - 2.0 * rise[1] * fall[1] / (r * r) + rise[0] * fall[2] / (r * r),
+            rise[2] * fall[0] / (r * r) - 2.0 * rise[1] * fall[1] / (r * r)
+                + rise[0] * fall[2] / (r * r),
         ];
         [
             taper[0] * chirp[0],
@@ -420,7 +427,8 @@ impl Trajectory {
     /// Yaw at `t_s`, radians.
     pub fn yaw_rad(&self, t_s: f64) -> f64 {
         let cfg = &self.config;
-        cfg.yaw_offset_rad + cfg.yaw_amplitude_rad * (core::f64::consts::TAU * t_s / cfg.yaw_period_s).sin()
+        cfg.yaw_offset_rad
+            + cfg.yaw_amplitude_rad * (core::f64::consts::TAU * t_s / cfg.yaw_period_s).sin()
     }
 
     /// Body-to-NED rotation from an acceleration and a yaw (thrust along body `-z`).
@@ -443,7 +451,8 @@ impl Trajectory {
         let kinematics = self.kinematics(t_s);
         let rotation = Self::rotation_from(&kinematics.accel_m_s2, self.yaw_rad(t_s));
         let h = RATE_DIFFERENCE_STEP_S;
-        let d_rot = (self.rotation(t_s - 2.0 * h) - 8.0 * self.rotation(t_s - h) + 8.0 * self.rotation(t_s + h)
+        let d_rot = (self.rotation(t_s - 2.0 * h) - 8.0 * self.rotation(t_s - h)
+            + 8.0 * self.rotation(t_s + h)
             - self.rotation(t_s + 2.0 * h))
             / (12.0 * h);
         let skew = rotation.transpose() * d_rot;
@@ -453,12 +462,13 @@ impl Trajectory {
             0.5 * (skew[(0, 2)] - skew[(2, 0)]),
             0.5 * (skew[(1, 0)] - skew[(0, 1)]),
         );
-        let mut attitude = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+        let mut attitude =
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
         if attitude.w < 0.0 {
             attitude = UnitQuaternion::new_unchecked(-attitude.into_inner());
         }
-        let specific_force_m_s2 =
-            rotation.transpose() * (kinematics.accel_m_s2 - Vector3::new(0.0, 0.0, STANDARD_GRAVITY));
+        let specific_force_m_s2 = rotation.transpose()
+            * (kinematics.accel_m_s2 - Vector3::new(0.0, 0.0, STANDARD_GRAVITY));
         MotionState {
             t_s,
             kinematics,
