@@ -26,6 +26,13 @@
 //!   derivatives vanish at `u = 0` and `u = 1`. Position is therefore C^6,
 //!   acceleration C^4 and the angular rate C^2 across the period boundaries.
 //!
+//! Both parts are multiplied by a start ramp `r(t) = S(t / T_s)` (8 s by
+//! default; `r = 0` before `t = 0`), so the vehicle starts at rest and
+//! level at the origin, as a real flight does (and as an accelerometer
+//! levelling assumes), and accelerates smoothly:
+//! `p(t) = r(t) (p_path(t) - p_path(0) + e_n x_chirp(t))`, differentiated
+//! by the product rule.
+//!
 //! The scale `k` is solved (bisection) so that the largest norm of the
 //! kinematic acceleration `|a(t)|` over `[0, max(horizon, T_m)]`, sampled
 //! every millisecond, equals the scenario's acceleration limit (19.61 or
@@ -126,6 +133,8 @@ pub struct TrajectoryConfig {
     pub amplitude_growth: f64,
     /// Duration of the taper at each end of a manoeuvre, seconds.
     pub taper_s: f64,
+    /// Duration of the start ramp from rest, seconds.
+    pub start_ramp_s: f64,
     /// Mean yaw, radians.
     pub yaw_offset_rad: f64,
     /// Yaw swing amplitude, radians.
@@ -172,6 +181,7 @@ impl TrajectoryConfig {
             chirp_end_hz: 0.8,
             amplitude_growth: 10.0,
             taper_s: 1.5,
+            start_ramp_s: 8.0,
             yaw_offset_rad: 0.0,
             yaw_amplitude_rad: 0.35,
             yaw_period_s: 45.0,
@@ -208,12 +218,19 @@ impl TrajectoryConfig {
                 reason: "must be positive and at least twice taper_s",
             });
         }
-        if !positive(self.chirp_start_hz)
-            || !(self.chirp_end_hz.is_finite() && self.chirp_end_hz > self.chirp_start_hz)
+        if !(positive(self.chirp_start_hz)
+            && self.chirp_end_hz.is_finite()
+            && self.chirp_end_hz > self.chirp_start_hz)
         {
             return Err(InvalidConfig {
                 field: "chirp_end_hz",
                 reason: "chirp frequencies must be positive and grow",
+            });
+        }
+        if !positive(self.start_ramp_s) {
+            return Err(InvalidConfig {
+                field: "start_ramp_s",
+                reason: "must be finite and positive",
             });
         }
         if !(self.amplitude_growth.is_finite() && self.amplitude_growth > 1.0) {
@@ -311,8 +328,8 @@ impl Trajectory {
         let mut chirp_accel = Vec::with_capacity(n);
         for i in 0..n {
             let t = i as f64 * LIMIT_GRID_STEP_S;
-            path_accel.push(traj.path(t).accel_m_s2);
-            chirp_accel.push(traj.unit_chirp(t)[2]);
+            path_accel.push(traj.ramped_path(t).accel_m_s2);
+            chirp_accel.push(traj.ramped_chirp(t)[2]);
         }
         let max_norm = |k: f64| {
             path_accel
@@ -413,11 +430,41 @@ impl Trajectory {
         ]
     }
 
+    /// The slow path times the start ramp.
+    fn ramped_path(&self, t: f64) -> Kinematics {
+        let r = self.ramp(t);
+        let mut p = self.path(t);
+        p.position_m -= self.path(0.0).position_m;
+        Kinematics {
+            position_m: p.position_m * r[0],
+            velocity_m_s: p.velocity_m_s * r[0] + p.position_m * r[1],
+            accel_m_s2: p.accel_m_s2 * r[0] + p.velocity_m_s * (2.0 * r[1]) + p.position_m * r[2],
+        }
+    }
+
+    /// The unit chirp times the start ramp.
+    fn ramped_chirp(&self, t: f64) -> [f64; 3] {
+        let r = self.ramp(t);
+        let c = self.unit_chirp(t);
+        [
+            r[0] * c[0],
+            r[0] * c[1] + r[1] * c[0],
+            r[0] * c[2] + 2.0 * r[1] * c[1] + r[2] * c[0],
+        ]
+    }
+
+    /// The start ramp and its first two time derivatives.
+    fn ramp(&self, t: f64) -> [f64; 3] {
+        let ramp_s = self.config.start_ramp_s;
+        let s = smooth_step(t / ramp_s);
+        [s[0], s[1] / ramp_s, s[2] / (ramp_s * ramp_s)]
+    }
+
     /// Position, velocity and acceleration at `t_s` (any real time; the
-    /// manoeuvre is zero before `t = 0`).
+    /// vehicle rests at the origin before `t = 0`).
     pub fn kinematics(&self, t_s: f64) -> Kinematics {
-        let mut k = self.path(t_s);
-        let chirp = self.unit_chirp(t_s);
+        let mut k = self.ramped_path(t_s);
+        let chirp = self.ramped_chirp(t_s);
         k.position_m.x += self.chirp_scale_m * chirp[0];
         k.velocity_m_s.x += self.chirp_scale_m * chirp[1];
         k.accel_m_s2.x += self.chirp_scale_m * chirp[2];
