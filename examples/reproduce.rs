@@ -8,6 +8,7 @@
 //! ```text
 //! cargo run --release --features sim --example reproduce              # everything
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
+//! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
 //! ```
 //!
 //! Every figure is the median over the seeds of one run's RMSE, counted
@@ -28,8 +29,8 @@ use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
 use delaynav::geo::wrap_pi;
 use delaynav::sim::{
-    NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, delay_bound_s,
-    noise_floor,
+    NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, csv::write_run,
+    delay_bound_s, noise_floor,
 };
 // EKF16-PENDING use delaynav::{Ekf16, Ekf16Config};
 use serde_json::{Value, json};
@@ -77,6 +78,9 @@ struct Args {
     /// A short run for CI and tests (2 seeds of 20 s, no plots unless --plots).
     #[arg(long)]
     quick: bool,
+    /// Also write each scenario's first-seed run as a CSV log under DIR/<scenario>-seed<S>/.
+    #[arg(long, value_name = "DIR")]
+    csv: Option<PathBuf>,
 }
 
 /// One simulated run, shared by every estimator.
@@ -875,6 +879,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         total: scenarios.len() * seeds.len() * estimators().len(),
         started: Instant::now(),
     };
+    if let Some(dir) = &args.csv {
+        for &scenario in &scenarios {
+            let config = SimConfig {
+                duration_s,
+                ..SimConfig::for_scenario(scenario, seeds[0])
+            };
+            let path = dir.join(format!("{}-seed{}", scenario.name(), seeds[0]));
+            let n = write_run(&path, Simulation::new(config)?)?;
+            eprintln!("wrote {n} events to {}", path.display());
+        }
+    }
     let results: Vec<ScenarioResult> = scenarios
         .iter()
         .map(|&s| {

@@ -13,6 +13,19 @@
 //! GPS fixes with their true delay), generated on the fly. At equal
 //! timestamps the IMU sample comes first, then the magnetometer, then GPS.
 //!
+//! ```
+//! use delaynav::sim::{Scenario, SimConfig, SimEvent, Simulation};
+//!
+//! let config = SimConfig { duration_s: 1.0, ..SimConfig::for_scenario(Scenario::High, 42) };
+//! let events: Vec<SimEvent> = Simulation::new(config).unwrap().collect();
+//! let fixes = events.iter().filter(|e| matches!(e, SimEvent::Gps { .. })).count();
+//! let imu = events.iter().filter(|e| matches!(e, SimEvent::Imu { .. })).count();
+//! assert_eq!((imu, fixes), (1001, 10)); // 1 kHz IMU from t = 0, 10 Hz GPS from t = 0.1 s
+//! if let Some(SimEvent::Gps { delay_s, .. }) = events.iter().find(|e| matches!(e, SimEvent::Gps { .. })) {
+//!     assert_eq!(*delay_s, 0.2); // Table 3's maximum delay, the default
+//! }
+//! ```
+//!
 //! # Timing
 //! Stream `s` at rate `r` has samples at `round(n * 1e6 / r)` microseconds,
 //! `n = 0, 1, ...` (GPS from `n = 1`), up to and including the run's
@@ -23,10 +36,14 @@
 //! # Determinism
 //! Every random stream (gyro, accelerometer, magnetometer and GPS noise,
 //! biases, jitter, vibration phases) is its own ChaCha8 generator seeded
-//! with `(seed, stream id)`; normal deviates come from `rand_distr`'s
-//! ziggurat with `libm` math. The same seed therefore gives bit-identical
-//! runs on every platform, and changing one stream's rate does not change
-//! another stream's noise.
+//! with `(seed, stream id)`; normal deviates come from the polar method,
+//! and all the simulator's transcendental functions from the pure-Rust
+//! `libm`, never the platform's math library. The same seed therefore
+//! gives bit-identical samples, positions, velocities and attitudes on every
+//! platform, and changing one stream's rate does not change another
+//! stream's noise. (Two derived outputs use the platform's math: the truth's
+//! Euler angles and geodetic GPS positions, through [`crate::geo`]; they may
+//! differ in the last bit.)
 //!
 //! # Scoring helpers
 //! [`delay_bound_s`] is the physical yardstick for any delay estimate on a
@@ -46,12 +63,11 @@ pub use trajectory::{
     Kinematics, MotionState, PathTerm, STANDARD_GRAVITY, Scenario, Trajectory, TrajectoryConfig,
 };
 
-use crate::geo::{LocalFrame, euler_from_quaternion, magnetic_field_ned};
+use crate::geo::{LocalFrame, euler_from_quaternion};
 use crate::sensors::{Gps, GpsPosition, Imu, Mag};
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rand_distr::StandardNormal;
 
 /// Everything that defines one simulated run.
 #[derive(Debug, Clone, PartialEq)]
@@ -182,11 +198,43 @@ fn stream_rng(seed: u64, stream: Stream) -> ChaCha8Rng {
     ChaCha8Rng::from_seed(key)
 }
 
-fn normal3(rng: &mut ChaCha8Rng, std: f64) -> Vector3<f64> {
-    let x: f64 = rng.sample(StandardNormal);
-    let y: f64 = rng.sample(StandardNormal);
-    let z: f64 = rng.sample(StandardNormal);
-    Vector3::new(x, y, z) * std
+/// Standard normal deviates from one ChaCha8 stream by Marsaglia's polar
+/// method (uniform pairs in the unit disc, `x sqrt(-2 ln s / s)`), with
+/// `libm`'s logarithm: the same numbers on every platform.
+#[derive(Debug)]
+struct Gaussian {
+    rng: ChaCha8Rng,
+    spare: Option<f64>,
+}
+
+impl Gaussian {
+    fn new(seed: u64, stream: Stream) -> Self {
+        Self {
+            rng: stream_rng(seed, stream),
+            spare: None,
+        }
+    }
+
+    fn next(&mut self) -> f64 {
+        if let Some(z) = self.spare.take() {
+            return z;
+        }
+        loop {
+            let u: f64 = self.rng.random_range(-1.0..1.0);
+            let v: f64 = self.rng.random_range(-1.0..1.0);
+            let s = u * u + v * v;
+            if s > 0.0 && s < 1.0 {
+                let k = (-2.0 * libm::log(s) / s).sqrt();
+                self.spare = Some(v * k);
+                return u * k;
+            }
+        }
+    }
+
+    fn vector(&mut self, std: f64) -> Vector3<f64> {
+        let (x, y, z) = (self.next(), self.next(), self.next());
+        Vector3::new(x, y, z) * std
+    }
 }
 
 fn uniform3(rng: &mut ChaCha8Rng, max: f64) -> Vector3<f64> {
@@ -197,6 +245,13 @@ fn uniform3(rng: &mut ChaCha8Rng, max: f64) -> Vector3<f64> {
             0.0
         }
     })
+}
+
+/// Unit Earth field in NED, `[cos I cos D, cos I sin D, sin I]`
+/// ([`geo::magnetic_field_ned`](crate::geo::magnetic_field_ned) with `libm`).
+fn field_ned(inclination: f64, declination: f64) -> Vector3<f64> {
+    let (si, ci) = (libm::sin(inclination), libm::cos(inclination));
+    Vector3::new(ci * libm::cos(declination), ci * libm::sin(declination), si)
 }
 
 /// Time of sample `n` of a stream at `rate_hz`, microseconds.
@@ -215,13 +270,13 @@ pub struct Simulation {
     frame: LocalFrame,
     field_ned: Vector3<f64>,
     duration_us: u64,
-    gyro_rng: ChaCha8Rng,
-    accel_rng: ChaCha8Rng,
-    mag_rng: ChaCha8Rng,
-    gps_position_rng: ChaCha8Rng,
-    gps_velocity_rng: ChaCha8Rng,
-    bias_walk_rng: ChaCha8Rng,
-    jitter_rng: ChaCha8Rng,
+    gyro_rng: Gaussian,
+    accel_rng: Gaussian,
+    mag_rng: Gaussian,
+    gps_position_rng: Gaussian,
+    gps_velocity_rng: Gaussian,
+    bias_walk_rng: Gaussian,
+    jitter_rng: Gaussian,
     vibration_phases: Vec<VibrationPhases>,
     gyro_bias: Vector3<f64>,
     accel_bias: Vector3<f64>,
@@ -250,15 +305,15 @@ impl Simulation {
             .collect();
         Ok(Self {
             frame: LocalFrame::new(sensors.origin),
-            field_ned: magnetic_field_ned(sensors.inclination_rad, sensors.declination_rad),
+            field_ned: field_ned(sensors.inclination_rad, sensors.declination_rad),
             duration_us: (config.duration_s * 1e6).round() as u64,
-            gyro_rng: stream_rng(config.seed, Stream::Gyro),
-            accel_rng: stream_rng(config.seed, Stream::Accel),
-            mag_rng: stream_rng(config.seed, Stream::Mag),
-            gps_position_rng: stream_rng(config.seed, Stream::GpsPosition),
-            gps_velocity_rng: stream_rng(config.seed, Stream::GpsVelocity),
-            bias_walk_rng: stream_rng(config.seed, Stream::BiasWalk),
-            jitter_rng: stream_rng(config.seed, Stream::Jitter),
+            gyro_rng: Gaussian::new(config.seed, Stream::Gyro),
+            accel_rng: Gaussian::new(config.seed, Stream::Accel),
+            mag_rng: Gaussian::new(config.seed, Stream::Mag),
+            gps_position_rng: Gaussian::new(config.seed, Stream::GpsPosition),
+            gps_velocity_rng: Gaussian::new(config.seed, Stream::GpsVelocity),
+            bias_walk_rng: Gaussian::new(config.seed, Stream::BiasWalk),
+            jitter_rng: Gaussian::new(config.seed, Stream::Jitter),
             vibration_phases,
             gyro_bias,
             accel_bias,
@@ -303,8 +358,8 @@ impl Simulation {
         {
             let arg = core::f64::consts::TAU * h.frequency_hz * t_s;
             for axis in 0..3 {
-                gyro[axis] += h.gyro_amplitude_rad_s * (arg + phases[axis]).sin();
-                accel[axis] += h.accel_amplitude_m_s2 * (arg + phases[3 + axis]).sin();
+                gyro[axis] += h.gyro_amplitude_rad_s * libm::sin(arg + phases[axis]);
+                accel[axis] += h.accel_amplitude_m_s2 * libm::sin(arg + phases[3 + axis]);
             }
         }
         (gyro, accel)
@@ -315,14 +370,12 @@ impl Simulation {
         let t_s = t_us as f64 * 1e-6;
         if let Some(prev) = self.last_imu_us {
             let dt = (t_us - prev) as f64 * 1e-6;
-            self.gyro_bias += normal3(
-                &mut self.bias_walk_rng,
-                sensors.gyro_bias_walk_rad_s_sqrt_s * dt.sqrt(),
-            );
-            self.accel_bias += normal3(
-                &mut self.bias_walk_rng,
-                sensors.accel_bias_walk_m_s2_sqrt_s * dt.sqrt(),
-            );
+            self.gyro_bias += self
+                .bias_walk_rng
+                .vector(sensors.gyro_bias_walk_rad_s_sqrt_s * dt.sqrt());
+            self.accel_bias += self
+                .bias_walk_rng
+                .vector(sensors.accel_bias_walk_m_s2_sqrt_s * dt.sqrt());
         }
         self.last_imu_us = Some(t_us);
         let motion = self.trajectory.state(t_s);
@@ -330,11 +383,11 @@ impl Simulation {
         let sensors = &self.config.sensors;
         let gyro = motion.angular_rate_rad_s
             + self.gyro_bias
-            + normal3(&mut self.gyro_rng, sensors.gyro_noise_var_rad2_s2.sqrt())
+            + self.gyro_rng.vector(sensors.gyro_noise_var_rad2_s2.sqrt())
             + vib_gyro;
         let accel = motion.specific_force_m_s2
             + self.accel_bias
-            + normal3(&mut self.accel_rng, sensors.accel_noise_std_m_s2())
+            + self.accel_rng.vector(sensors.accel_noise_std_m_s2())
             + vib_accel;
         SimEvent::Imu {
             sample: Imu {
@@ -359,7 +412,9 @@ impl Simulation {
 
     fn mag_event(&mut self, t_us: u64) -> SimEvent {
         let rotation = self.trajectory.rotation(t_us as f64 * 1e-6);
-        let noise = normal3(&mut self.mag_rng, self.config.sensors.mag_noise_var.sqrt());
+        let noise = self
+            .mag_rng
+            .vector(self.config.sensors.mag_noise_var.sqrt());
         SimEvent::Mag(Mag {
             t_us,
             field_body: rotation.transpose() * self.field_ned + noise,
@@ -370,8 +425,7 @@ impl Simulation {
         let t_s = t_us as f64 * 1e-6;
         let delay = &self.config.delay;
         let jitter = if delay.jitter_std_s > 0.0 {
-            let e: f64 = self.jitter_rng.sample(StandardNormal);
-            e * delay.jitter_std_s
+            self.jitter_rng.next() * delay.jitter_std_s
         } else {
             0.0
         };
@@ -379,15 +433,13 @@ impl Simulation {
         let truth = self.trajectory.kinematics(t_s - delay_s);
         let sensors = &self.config.sensors;
         let position_ned = truth.position_m
-            + normal3(
-                &mut self.gps_position_rng,
-                sensors.gps_position_var_m2.sqrt(),
-            );
+            + self
+                .gps_position_rng
+                .vector(sensors.gps_position_var_m2.sqrt());
         let velocity = truth.velocity_m_s
-            + normal3(
-                &mut self.gps_velocity_rng,
-                sensors.gps_velocity_var_m2_s2.sqrt(),
-            );
+            + self
+                .gps_velocity_rng
+                .vector(sensors.gps_velocity_var_m2_s2.sqrt());
         let position = match sensors.gps_position_output {
             GpsPositionOutput::Ned => GpsPosition::Ned(position_ned),
             GpsPositionOutput::Geodetic => {

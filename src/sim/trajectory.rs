@@ -63,6 +63,7 @@
 //! its rounding error near `eps / h`, about 1e-13 rad/s (tested against an
 //! integration of the rate in `tests/sim.rs`).
 
+use libm::{cos, exp, log, sin};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Standard gravity, m/s^2: the unit `g` of the paper's Table 3 and the
@@ -290,12 +291,14 @@ fn smooth_step(u: f64) -> [f64; 3] {
         return [1.0, 0.0, 0.0];
     }
     // S = u^5 (126 - 420u + 540u^2 - 315u^3 + 70u^4)
-    let s = u.powi(5) * (126.0 + u * (-420.0 + u * (540.0 + u * (-315.0 + u * 70.0))));
+    let u3 = u * u * u;
+    let s = u3 * u * u * (126.0 + u * (-420.0 + u * (540.0 + u * (-315.0 + u * 70.0))));
     // S' = 630 u^4 (1 - u)^4
-    let one_minus = 1.0 - u;
-    let ds = 630.0 * u.powi(4) * one_minus.powi(4);
+    let v = 1.0 - u;
+    let v3 = v * v * v;
+    let ds = 630.0 * u3 * u * v3 * v;
     // S'' = 2520 u^3 (1 - u)^3 (1 - 2u)
-    let dds = 2520.0 * u.powi(3) * one_minus.powi(3) * (1.0 - 2.0 * u);
+    let dds = 2520.0 * u3 * v3 * (1.0 - 2.0 * u);
     [s, ds, dds]
 }
 
@@ -381,7 +384,8 @@ impl Trajectory {
         };
         for term in &self.config.path {
             let w = core::f64::consts::TAU / term.period_s;
-            let (s, c) = (w * t + term.phase_rad).sin_cos();
+            let arg = w * t + term.phase_rad;
+            let (s, c) = (sin(arg), cos(arg));
             k.position_m += term.amplitude_m * s;
             k.velocity_m_s += term.amplitude_m * (w * c);
             k.accel_m_s2 -= term.amplitude_m * (w * w * s);
@@ -398,16 +402,17 @@ impl Trajectory {
         }
         let period = cfg.manoeuvre_period_s;
         let tau = t.rem_euclid(period);
-        let t_a = period / cfg.amplitude_growth.ln();
-        let t_f = period / (cfg.chirp_end_hz / cfg.chirp_start_hz).ln();
+        let t_a = period / log(cfg.amplitude_growth);
+        let t_f = period / log(cfg.chirp_end_hz / cfg.chirp_start_hz);
         let w0 = core::f64::consts::TAU * cfg.chirp_start_hz;
         // c = A sin(phi)
-        let amp = (tau / t_a).exp();
+        let amp = exp(tau / t_a);
         let (d_amp, dd_amp) = (amp / t_a, amp / (t_a * t_a));
-        let phi = w0 * t_f * ((tau / t_f).exp() - 1.0);
-        let d_phi = w0 * (tau / t_f).exp();
+        let growth = exp(tau / t_f);
+        let phi = w0 * t_f * (growth - 1.0);
+        let d_phi = w0 * growth;
         let dd_phi = d_phi / t_f;
-        let (s, c) = phi.sin_cos();
+        let (s, c) = (sin(phi), cos(phi));
         let chirp = [
             amp * s,
             d_amp * s + amp * d_phi * c,
@@ -475,14 +480,14 @@ impl Trajectory {
     pub fn yaw_rad(&self, t_s: f64) -> f64 {
         let cfg = &self.config;
         cfg.yaw_offset_rad
-            + cfg.yaw_amplitude_rad * (core::f64::consts::TAU * t_s / cfg.yaw_period_s).sin()
+            + cfg.yaw_amplitude_rad * sin(core::f64::consts::TAU * t_s / cfg.yaw_period_s)
     }
 
     /// Body-to-NED rotation from an acceleration and a yaw (thrust along body `-z`).
     fn rotation_from(accel: &Vector3<f64>, yaw: f64) -> Matrix3<f64> {
         let f_n = accel - Vector3::new(0.0, 0.0, STANDARD_GRAVITY);
         let z_b = -f_n / f_n.norm();
-        let y_c = Vector3::new(-yaw.sin(), yaw.cos(), 0.0);
+        let y_c = Vector3::new(-sin(yaw), cos(yaw), 0.0);
         let x_b = y_c.cross(&z_b).normalize();
         let y_b = z_b.cross(&x_b);
         Matrix3::from_columns(&[x_b, y_b, z_b])
