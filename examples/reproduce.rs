@@ -566,6 +566,7 @@ const COLORS: [&str; 6] = [
 
 /// A minimal SVG line plot: stacked panels sharing the time axis.
 fn svg_panels(title: &str, panels: &[Panel]) -> String {
+    let panels: Vec<&Panel> = panels.iter().filter(|p| !p.series.is_empty()).collect();
     let (width, panel_h, left, top, gap) = (900.0, 200.0, 70.0, 40.0, 50.0);
     let plot_w = width - left - 160.0;
     let height = top + panels.len() as f64 * (panel_h + gap);
