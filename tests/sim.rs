@@ -510,7 +510,7 @@ fn csv_export_round_trips_bit_for_bit() {
             0.1f64.sqrt()
         );
     }
-    assert_eq!(mag_rows.len(), 1001);
+    assert_eq!(mag_rows.len(), 101); // 100 Hz magnetometer
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -536,7 +536,10 @@ fn delay_bound_matches_its_closed_form() {
 fn noise_floor_heading_matches_the_scalar_riccati_solution() {
     // Magnetometer at the IMU rate: one prediction per update, so the
     // posterior variance solves P^2 + qP - qr = 0.
-    let sensors = SensorConfig::default();
+    let sensors = SensorConfig {
+        mag_rate_hz: 1000.0,
+        ..SensorConfig::default()
+    };
     let floor = noise_floor(&sensors, STANDARD_GRAVITY);
     let dt = 1.0 / sensors.imu_rate_hz;
     let q = sensors.gyro_noise_var_rad2_s2 * dt * dt;
