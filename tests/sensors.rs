@@ -1,0 +1,163 @@
+//! sensors: the input checks refuse what must be refused and pass the rest through unchanged.
+
+use delaynav::sensors::{checked_gps, checked_imu, checked_mag};
+use delaynav::{Error, Geodetic, Gps, GpsPosition, Imu, Mag};
+use nalgebra::Vector3;
+
+macro_rules! sensor_tests {
+    ($mod:ident, $t:ty) => {
+        mod $mod {
+            use super::*;
+            type T = $t;
+
+            fn gps() -> Gps<T> {
+                Gps {
+                    t_us: 5,
+                    position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+                    velocity_ned_m_s: Vector3::new(0.1, 0.2, 0.3),
+                    horizontal_accuracy_m: Some(1.5),
+                    vertical_accuracy_m: None,
+                    speed_accuracy_m_s: Some(0.2),
+                }
+            }
+
+            #[test]
+            fn valid_samples_pass_unchanged() {
+                let imu = Imu::<T> {
+                    t_us: 7,
+                    gyro_rad_s: Vector3::new(0.1, -0.2, 0.3),
+                    accel_m_s2: Vector3::new(0.0, 0.0, -9.8),
+                };
+                assert_eq!(checked_imu(&imu), Ok(imu));
+                let mag = Mag::<T> {
+                    t_us: 7,
+                    field_body: Vector3::new(0.2, 0.0, 0.4),
+                };
+                assert_eq!(checked_mag(&mag), Ok(mag));
+                assert_eq!(checked_gps(&gps()), Ok(gps()));
+                let mut g = gps();
+                g.position = GpsPosition::Geodetic(Geodetic {
+                    lat_deg: 31.2,
+                    lon_deg: 121.5,
+                    alt_m: 4.0,
+                });
+                assert_eq!(checked_gps(&g), Ok(g));
+            }
+
+            #[test]
+            fn non_finite_fields_are_named() {
+                let mut imu = Imu::<T> {
+                    t_us: 7,
+                    gyro_rad_s: Vector3::zeros(),
+                    accel_m_s2: Vector3::zeros(),
+                };
+                imu.gyro_rad_s.y = T::NAN;
+                assert_eq!(
+                    checked_imu(&imu),
+                    Err(Error::NonFinite { field: "imu.gyro" })
+                );
+                imu.gyro_rad_s.y = 0.0;
+                imu.accel_m_s2.z = T::INFINITY;
+                assert_eq!(
+                    checked_imu(&imu),
+                    Err(Error::NonFinite { field: "imu.accel" })
+                );
+
+                let mut g = gps();
+                g.velocity_ned_m_s.x = T::NAN;
+                assert_eq!(
+                    checked_gps(&g),
+                    Err(Error::NonFinite {
+                        field: "gps.velocity"
+                    })
+                );
+                let mut g = gps();
+                g.position = GpsPosition::Ned(Vector3::new(0.0, T::NEG_INFINITY, 0.0));
+                assert_eq!(
+                    checked_gps(&g),
+                    Err(Error::NonFinite {
+                        field: "gps.position"
+                    })
+                );
+                let mut g = gps();
+                g.position = GpsPosition::Geodetic(Geodetic {
+                    lat_deg: f64::NAN,
+                    lon_deg: 0.0,
+                    alt_m: 0.0,
+                });
+                assert_eq!(
+                    checked_gps(&g),
+                    Err(Error::NonFinite {
+                        field: "gps.position"
+                    })
+                );
+                let mut g = gps();
+                g.speed_accuracy_m_s = Some(T::NAN);
+                assert_eq!(
+                    checked_gps(&g),
+                    Err(Error::NonFinite {
+                        field: "gps.speed_accuracy"
+                    })
+                );
+
+                let mag = Mag::<T> {
+                    t_us: 1,
+                    field_body: Vector3::new(T::NAN, 0.0, 0.0),
+                };
+                assert_eq!(
+                    checked_mag(&mag),
+                    Err(Error::NonFinite { field: "mag.field" })
+                );
+            }
+
+            #[test]
+            fn out_of_range_values_are_refused() {
+                let mut g = gps();
+                g.horizontal_accuracy_m = Some(0.0);
+                assert!(matches!(
+                    checked_gps(&g),
+                    Err(Error::OutOfRange {
+                        field: "gps.horizontal_accuracy",
+                        ..
+                    })
+                ));
+                let mut g = gps();
+                g.position = GpsPosition::Geodetic(Geodetic {
+                    lat_deg: 91.0,
+                    lon_deg: 0.0,
+                    alt_m: 0.0,
+                });
+                assert!(checked_gps(&g).is_err());
+                let mag = Mag::<T> {
+                    t_us: 1,
+                    field_body: Vector3::zeros(),
+                };
+                assert!(matches!(
+                    checked_mag(&mag),
+                    Err(Error::OutOfRange {
+                        field: "mag.field",
+                        ..
+                    })
+                ));
+            }
+        }
+    };
+}
+
+sensor_tests!(f32_sensors, f32);
+sensor_tests!(f64_sensors, f64);
+
+#[test]
+fn errors_display_what_was_wrong() {
+    let e = Error::TimeWentBackwards {
+        stream: "imu",
+        previous_us: 10,
+        got_us: 5,
+    };
+    assert_eq!(
+        e.to_string(),
+        "time went backwards on imu: previous 10 us, got 5 us"
+    );
+    let e = Error::NonFinite { field: "imu.gyro" };
+    assert_eq!(e.to_string(), "non-finite value in `imu.gyro`");
+}
