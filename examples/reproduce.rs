@@ -102,8 +102,9 @@ struct Trace {
     delay_s: Vec<f64>,
 }
 
-/// The scores of one estimator on one run.
-struct RunScore {
+/// RMS errors and cost of one estimator: of one run, or medians over the
+/// seeds of a scenario.
+struct Metrics {
     roll_deg: f64,
     pitch_deg: f64,
     yaw_deg: f64,
@@ -113,6 +114,11 @@ struct RunScore {
     gyro_bias_rad_s: [f64; 3],
     accel_bias_g: [f64; 3],
     us_per_imu_sample: f64,
+}
+
+/// The scores of one estimator on one run.
+struct RunScore {
+    metrics: Metrics,
     trace: Trace,
 }
 
@@ -239,7 +245,7 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
     }
     // An estimator without an estimate after the convergence time fails the run.
     let penalty = if missing > 0 { f64::NAN } else { 0.0 };
-    RunScore {
+    let metrics = Metrics {
         roll_deg: euler[0].value() + penalty,
         pitch_deg: euler[1].value() + penalty,
         yaw_deg: euler[2].value() + penalty,
@@ -249,8 +255,8 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
         gyro_bias_rad_s: gyro_bias.map(|r| r.value() + penalty),
         accel_bias_g: accel_bias.map(|r| r.value() + penalty),
         us_per_imu_sample: busy.as_secs_f64() * 1e6 / imu_samples.max(1) as f64,
-        trace,
-    }
+    };
+    RunScore { metrics, trace }
 }
 
 /// Median of finite values; NaN when any is not finite (a failed run shows).
@@ -267,22 +273,10 @@ fn median(mut xs: Vec<f64>) -> f64 {
     }
 }
 
-/// Medians over the seeds of one estimator in one scenario.
-struct Summary {
-    roll_deg: f64,
-    pitch_deg: f64,
-    yaw_deg: f64,
-    vel_m_s: f64,
-    pos_m: f64,
-    delay_s: Option<f64>,
-    gyro_bias_rad_s: [f64; 3],
-    accel_bias_g: [f64; 3],
-    us_per_imu_sample: f64,
-}
-
-fn summarize(runs: &[RunScore]) -> Summary {
-    let m = |f: &dyn Fn(&RunScore) -> f64| median(runs.iter().map(f).collect());
-    Summary {
+/// Medians over the seeds of one estimator's metrics.
+fn summarize(runs: &[Metrics]) -> Metrics {
+    let m = |f: &dyn Fn(&Metrics) -> f64| median(runs.iter().map(f).collect());
+    Metrics {
         roll_deg: m(&|r| r.roll_deg),
         pitch_deg: m(&|r| r.pitch_deg),
         yaw_deg: m(&|r| r.yaw_deg),
@@ -338,7 +332,7 @@ struct ScenarioResult {
     true_delay_s: f64,
     delay_bound_s: f64,
     floor_hover: NoiseFloor,
-    summaries: Vec<(&'static str, Summary)>,
+    summaries: Vec<(&'static str, Metrics)>,
     /// First seed's traces per estimator, and the truth's pitch and delay.
     traces: Vec<(&'static str, Trace)>,
     truth_trace: Vec<(f64, f64, f64)>,
@@ -360,7 +354,7 @@ fn fmt_value(x: f64) -> String {
 /// (proposed, AEKF), and the floor column.
 type TableRow<'a> = (
     &'a str,
-    &'a dyn Fn(&Summary) -> Option<f64>,
+    &'a dyn Fn(&Metrics) -> Option<f64>,
     (f64, f64),
     String,
 );
@@ -740,7 +734,7 @@ fn run_scenario(
     progress: &mut Progress,
 ) -> ScenarioResult {
     let registry = estimators();
-    let mut scores: Vec<Vec<RunScore>> = registry.iter().map(|_| Vec::new()).collect();
+    let mut scores: Vec<Vec<Metrics>> = registry.iter().map(|_| Vec::new()).collect();
     let mut bounds = Vec::new();
     let mut traces = Vec::new();
     let mut truth_trace = Vec::new();
@@ -801,7 +795,7 @@ fn run_scenario(
         };
         for (i, estimator) in registry.iter().enumerate() {
             let started = Instant::now();
-            let mut s = (estimator.run)(&setup);
+            let s = (estimator.run)(&setup);
             progress.step(
                 scenario.name(),
                 seed,
@@ -809,9 +803,9 @@ fn run_scenario(
                 started.elapsed().as_secs_f64(),
             );
             if first {
-                traces.push((estimator.name, std::mem::take(&mut s.trace)));
+                traces.push((estimator.name, s.trace));
             }
-            scores[i].push(s);
+            scores[i].push(s.metrics);
         }
     }
     ScenarioResult {
