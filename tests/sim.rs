@@ -560,3 +560,41 @@ fn noise_floor_heading_matches_the_scalar_riccati_solution() {
     assert!(floor.velocity_norm_m_s > floor.horizontal_velocity_m_s);
     eprintln!("noise floor at 1 g: {floor:?}\nat 5 g: {hard:?}");
 }
+
+#[test]
+fn vibration_adds_its_harmonic_to_gyro_and_accelerometer() {
+    let harmonic = VibrationHarmonic {
+        frequency_hz: 180.0,
+        gyro_amplitude_rad_s: 0.05,
+        accel_amplitude_m_s2: 2.0,
+    };
+    let config = SimConfig {
+        sensors: SensorConfig {
+            vibration: vec![harmonic],
+            ..SensorConfig::noise_free()
+        },
+        ..noise_free(Scenario::Low, 1.0)
+    };
+    let samples = imu_with_truth(&run(config));
+    for axis in 0..3 {
+        // Project the residual on sin and cos at the harmonic's frequency over
+        // a whole number of periods (1 s = 180 periods): amplitude sqrt(s² + c²).
+        let (mut s, mut c) = (0.0, 0.0);
+        let (mut sa, mut ca) = (0.0, 0.0);
+        let n = samples.len() - 1;
+        for (imu, truth) in &samples[..n] {
+            let phase = std::f64::consts::TAU * harmonic.frequency_hz * truth.t_us as f64 * 1e-6;
+            let g = imu.gyro_rad_s[axis] - truth.angular_rate_rad_s[axis];
+            let f_b =
+                truth.attitude.inverse() * (truth.accel_m_s2 - Vector3::z() * STANDARD_GRAVITY);
+            let a = imu.accel_m_s2[axis] - f_b[axis];
+            s += g * phase.sin();
+            c += g * phase.cos();
+            sa += a * phase.sin();
+            ca += a * phase.cos();
+        }
+        let amplitude = |s: f64, c: f64| 2.0 * (s * s + c * c).sqrt() / n as f64;
+        assert!((amplitude(s, c) / harmonic.gyro_amplitude_rad_s - 1.0).abs() < 1e-6);
+        assert!((amplitude(sa, ca) / harmonic.accel_amplitude_m_s2 - 1.0).abs() < 1e-6);
+    }
+}
