@@ -1,6 +1,6 @@
 //! What every estimator reports, and the surface they share.
 //!
-//! `Ekf16`, the augmented baseline and the delay-compensated
+//! [`Ekf16`](crate::Ekf16), the augmented baseline and the delay-compensated
 //! navigator all implement [`Navigator`], so examples, tests and benchmarks
 //! swap them freely: push IMU, GPS and magnetometer samples, read an
 //! [`Estimate`].

@@ -23,14 +23,17 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod ekf16;
 pub mod error;
 pub mod estimate;
 pub mod geo;
+pub mod kalman;
 pub mod scalar;
 pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
 
+pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 pub use scalar::Scalar;

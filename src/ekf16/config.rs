@@ -1,0 +1,285 @@
+//! Configuration of the 16-state EKF (and of every filter built on its core).
+//!
+//! Noise is given as continuous-time densities, independent of the IMU rate:
+//!
+//! | field | unit | meaning |
+//! |---|---|---|
+//! | `gyro_noise_density` | rad/s/√Hz | white noise on the rate |
+//! | `accel_noise_density` | m/s²/√Hz | white noise on the specific force |
+//! | `gyro_bias_random_walk` | rad/s/√s | drift of the gyro bias |
+//! | `accel_bias_random_walk` | m/s²/√s | drift of the accelerometer bias |
+//!
+//! A datasheet or the paper's Table 3 gives a per-sample variance `σ²` at a
+//! sample rate `f`; white noise of density `d` sampled at `f` (anti-aliased to
+//! `f/2`) has variance `d² f`, so `d² = σ² / f`
+//! ([`Ekf16Config::with_per_sample_imu_variances`]).
+//!
+//! The defaults are the paper's simulation (Table 3, IMU at 1 kHz): gyro
+//! 0.0017 (rad/s)², accelerometer 0.01 g² per sample, GPS position 4 m²,
+//! velocity 0.1 (m/s)², magnetometer 0.02 (unit field).
+
+use crate::error::Error;
+use crate::kalman::GATE_5_SIGMA_3DOF;
+use crate::scalar::Scalar;
+use crate::sensors::Geodetic;
+use nalgebra::Vector3;
+
+/// Standard gravity, m/s^2.
+pub const STANDARD_GRAVITY: f64 = 9.806_65;
+
+/// Paper Table 3: gyro white-noise variance per sample, (rad/s)^2.
+pub const TABLE3_GYRO_VARIANCE: f64 = 0.0017;
+/// Paper Table 3: accelerometer white-noise variance per sample, g^2.
+pub const TABLE3_ACCEL_VARIANCE_G2: f64 = 0.01;
+/// Paper Table 3: magnetometer white-noise variance (unit field).
+pub const TABLE3_MAG_VARIANCE: f64 = 0.02;
+/// Paper Table 3: GPS position variance, m^2.
+pub const TABLE3_GPS_POSITION_VARIANCE: f64 = 4.0;
+/// Paper Table 3: GPS velocity variance, (m/s)^2.
+pub const TABLE3_GPS_VELOCITY_VARIANCE: f64 = 0.1;
+/// The paper's IMU rate, Hz.
+pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
+
+/// Everything the 16-state EKF needs to know that is not a sensor sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Ekf16Config<T: Scalar> {
+    /// Gravity magnitude, m/s^2 (NED: `[0, 0, +g]`).
+    pub gravity_m_s2: T,
+    /// Gyro white-noise density, rad/s/√Hz.
+    pub gyro_noise_density: T,
+    /// Accelerometer white-noise density, m/s^2/√Hz.
+    pub accel_noise_density: T,
+    /// Gyro bias random walk, rad/s/√s.
+    pub gyro_bias_random_walk: T,
+    /// Accelerometer bias random walk, m/s^2/√s.
+    pub accel_bias_random_walk: T,
+
+    /// GPS horizontal position noise (1 sigma, north and east), m.
+    pub gps_horizontal_std_m: T,
+    /// GPS vertical position noise (1 sigma), m.
+    pub gps_vertical_std_m: T,
+    /// GPS velocity noise (1 sigma per axis), m/s.
+    pub gps_velocity_std_m_s: T,
+    /// Use the receiver's reported accuracies instead of the three values
+    /// above when a fix carries them.
+    pub use_receiver_accuracy: bool,
+    /// GPS antenna position relative to the IMU, body FRD, m.
+    pub lever_arm_m: Vector3<T>,
+    /// Origin of the local NED frame; `None`: the fix that initializes the filter.
+    pub origin: Option<Geodetic>,
+
+    /// Magnetic inclination, radians, positive down from horizontal.
+    pub mag_inclination_rad: T,
+    /// Magnetic declination, radians, east of true north.
+    pub mag_declination_rad: T,
+    /// Variance of each component of the unit-field pseudo-measurement.
+    pub mag_noise_variance: T,
+
+    /// Chi-square gate on the NIS of the GPS position block (3 DOF).
+    pub gps_position_gate: T,
+    /// Chi-square gate on the NIS of the GPS velocity block (3 DOF).
+    pub gps_velocity_gate: T,
+    /// Chi-square gate on the NIS of the magnetometer block (3 DOF).
+    pub mag_gate: T,
+
+    /// Longest IMU step integrated, microseconds; longer gaps are refused
+    /// with [`Error::StepTooLong`] (covariance grows, state not propagated).
+    pub max_imu_step_us: u64,
+    /// Largest plausible rate magnitude per axis, rad/s; larger samples are refused.
+    pub max_gyro_rad_s: T,
+    /// Largest plausible specific force per axis, m/s^2; larger samples are refused.
+    pub max_accel_m_s2: T,
+
+    /// IMU samples averaged for the initial roll and pitch (running mean
+    /// up to this count, then exponential with weight `1 / align_window`).
+    pub align_window: u32,
+    /// IMU samples needed before a GPS fix may initialize the filter.
+    pub align_min_samples: u32,
+    /// Initial roll and pitch standard deviation, rad.
+    pub initial_tilt_std_rad: T,
+    /// Initial yaw standard deviation with a magnetometer heading, rad.
+    pub initial_yaw_std_rad: T,
+    /// Initial yaw standard deviation without magnetometer (yaw set to 0), rad.
+    pub initial_yaw_std_no_mag_rad: T,
+    /// Initial position standard deviation per axis, m.
+    pub initial_position_std_m: T,
+    /// Initial velocity standard deviation per axis, m/s.
+    pub initial_velocity_std_m_s: T,
+    /// Initial accelerometer-bias standard deviation per axis, m/s^2.
+    pub initial_accel_bias_std_m_s2: T,
+    /// Initial gyro-bias standard deviation per axis, rad/s.
+    pub initial_gyro_bias_std_rad_s: T,
+}
+
+impl<T: Scalar> Default for Ekf16Config<T> {
+    fn default() -> Self {
+        let g = STANDARD_GRAVITY;
+        Self {
+            gravity_m_s2: T::lit(g),
+            gyro_noise_density: T::lit(TABLE3_GYRO_VARIANCE / PAPER_IMU_RATE_HZ).sqrt(),
+            accel_noise_density: T::lit(TABLE3_ACCEL_VARIANCE_G2 * g * g / PAPER_IMU_RATE_HZ)
+                .sqrt(),
+            gyro_bias_random_walk: T::lit(1e-4),
+            accel_bias_random_walk: T::lit(1e-3),
+            gps_horizontal_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE).sqrt(),
+            gps_vertical_std_m: T::lit(TABLE3_GPS_POSITION_VARIANCE).sqrt(),
+            gps_velocity_std_m_s: T::lit(TABLE3_GPS_VELOCITY_VARIANCE).sqrt(),
+            use_receiver_accuracy: true,
+            lever_arm_m: Vector3::zeros(),
+            origin: None,
+            mag_inclination_rad: T::zero(),
+            mag_declination_rad: T::zero(),
+            mag_noise_variance: T::lit(TABLE3_MAG_VARIANCE),
+            gps_position_gate: T::lit(GATE_5_SIGMA_3DOF),
+            gps_velocity_gate: T::lit(GATE_5_SIGMA_3DOF),
+            mag_gate: T::lit(GATE_5_SIGMA_3DOF),
+            max_imu_step_us: 250_000,
+            max_gyro_rad_s: T::lit(35.0),
+            max_accel_m_s2: T::lit(400.0),
+            align_window: 200,
+            align_min_samples: 1,
+            initial_tilt_std_rad: T::lit(0.1),
+            initial_yaw_std_rad: T::lit(0.3),
+            initial_yaw_std_no_mag_rad: T::lit(0.5),
+            initial_position_std_m: T::lit(5.0),
+            initial_velocity_std_m_s: T::lit(1.0),
+            initial_accel_bias_std_m_s2: T::lit(0.1 * g),
+            initial_gyro_bias_std_rad_s: T::lit(0.01),
+        }
+    }
+}
+
+impl<T: Scalar> Ekf16Config<T> {
+    /// The defaults with the IMU noise given as per-sample variances at a
+    /// sample rate (the paper's Table 3 style): `density² = variance / rate`.
+    ///
+    /// `gyro_variance` in (rad/s)^2, `accel_variance` in (m/s^2)^2, `imu_rate_hz` in Hz.
+    pub fn with_per_sample_imu_variances(
+        gyro_variance: T,
+        accel_variance: T,
+        imu_rate_hz: T,
+    ) -> Self {
+        Self {
+            gyro_noise_density: (gyro_variance / imu_rate_hz).sqrt(),
+            accel_noise_density: (accel_variance / imu_rate_hz).sqrt(),
+            ..Self::default()
+        }
+    }
+
+    /// Checks every field; the first offending one is named in the error.
+    pub fn validate(&self) -> Result<(), Error> {
+        let positive: [(T, &'static str); 19] = [
+            (self.gravity_m_s2, "gravity_m_s2"),
+            (self.gyro_noise_density, "gyro_noise_density"),
+            (self.accel_noise_density, "accel_noise_density"),
+            (self.gps_horizontal_std_m, "gps_horizontal_std_m"),
+            (self.gps_vertical_std_m, "gps_vertical_std_m"),
+            (self.gps_velocity_std_m_s, "gps_velocity_std_m_s"),
+            (self.mag_noise_variance, "mag_noise_variance"),
+            (self.gps_position_gate, "gps_position_gate"),
+            (self.gps_velocity_gate, "gps_velocity_gate"),
+            (self.mag_gate, "mag_gate"),
+            (self.max_gyro_rad_s, "max_gyro_rad_s"),
+            (self.max_accel_m_s2, "max_accel_m_s2"),
+            (self.initial_tilt_std_rad, "initial_tilt_std_rad"),
+            (self.initial_yaw_std_rad, "initial_yaw_std_rad"),
+            (
+                self.initial_yaw_std_no_mag_rad,
+                "initial_yaw_std_no_mag_rad",
+            ),
+            (self.initial_position_std_m, "initial_position_std_m"),
+            (self.initial_velocity_std_m_s, "initial_velocity_std_m_s"),
+            (
+                self.initial_accel_bias_std_m_s2,
+                "initial_accel_bias_std_m_s2",
+            ),
+            (
+                self.initial_gyro_bias_std_rad_s,
+                "initial_gyro_bias_std_rad_s",
+            ),
+        ];
+        for (v, field) in positive {
+            // `!(v > 0)` also catches NaN. Gates may be +inf (no gating).
+            if v.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+                return Err(Error::InvalidConfig {
+                    field,
+                    reason: "must be positive",
+                });
+            }
+            if !field.ends_with("gate") && !v.is_finite() {
+                return Err(Error::InvalidConfig {
+                    field,
+                    reason: "must be finite",
+                });
+            }
+        }
+        for (v, field) in [
+            (self.gyro_bias_random_walk, "gyro_bias_random_walk"),
+            (self.accel_bias_random_walk, "accel_bias_random_walk"),
+        ] {
+            if !v.is_finite() || v < T::zero() {
+                return Err(Error::InvalidConfig {
+                    field,
+                    reason: "must be finite and not negative",
+                });
+            }
+        }
+        if !self.lever_arm_m.iter().all(|v| v.is_finite()) {
+            return Err(Error::InvalidConfig {
+                field: "lever_arm_m",
+                reason: "must be finite",
+            });
+        }
+        for (v, field) in [
+            (self.mag_inclination_rad, "mag_inclination_rad"),
+            (self.mag_declination_rad, "mag_declination_rad"),
+        ] {
+            if !v.is_finite() || v.abs() > T::pi() {
+                return Err(Error::InvalidConfig {
+                    field,
+                    reason: "must be finite radians in [-pi, pi]",
+                });
+            }
+        }
+        if self.mag_inclination_rad.abs() >= T::frac_pi_2() {
+            return Err(Error::InvalidConfig {
+                field: "mag_inclination_rad",
+                reason: "a vertical field has no heading: |inclination| must be below pi/2",
+            });
+        }
+        if self.max_imu_step_us == 0 {
+            return Err(Error::InvalidConfig {
+                field: "max_imu_step_us",
+                reason: "must be positive",
+            });
+        }
+        if self.align_window == 0 {
+            return Err(Error::InvalidConfig {
+                field: "align_window",
+                reason: "must be at least 1",
+            });
+        }
+        if self.align_min_samples == 0 {
+            return Err(Error::InvalidConfig {
+                field: "align_min_samples",
+                reason: "must be at least 1",
+            });
+        }
+        if self.align_min_samples > self.align_window {
+            return Err(Error::InvalidConfig {
+                field: "align_min_samples",
+                reason: "must not exceed align_window",
+            });
+        }
+        if let Some(o) = self.origin
+            && !o.is_valid()
+        {
+            return Err(Error::InvalidConfig {
+                field: "origin",
+                reason: "latitude/longitude/height must be finite and in range",
+            });
+        }
+        Ok(())
+    }
+}

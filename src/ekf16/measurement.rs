@@ -1,0 +1,182 @@
+//! Measurement models of the 16-state EKF: GPS position and velocity (with
+//! the antenna lever arm) and the heading-only magnetometer
+//! pseudo-measurement. Pure functions returning `h(x)` and `H = ∂h/∂x`.
+//!
+//! Equation numbers follow the published paper, where the pseudo-measurement
+//! and its three rotation matrices form eq. (6), the measurement model
+//! `z = h(x) + e` eq. (7) and its Jacobian `H` eq. (8).
+//!
+//! # GPS (eq. 7 rows 4-9 and eq. 8, plus the lever arm)
+//! The antenna sits at `l_b` (m, body FRD) from the IMU. With `w` the last
+//! measured rate:
+//!
+//! ```text
+//! h_r(x) = r + R(q) l_b                          (m, NED)
+//! h_v(x) = v + R(q) ((w - b_w) × l_b)            (m/s, NED)
+//!
+//! ∂h_r/∂r = I      ∂h_r/∂q = ∂(R(q) l_b)/∂q
+//! ∂h_v/∂v = I      ∂h_v/∂q = ∂(R(q) u)/∂q, u = (w - b_w) × l_b
+//!                  ∂h_v/∂b_w = R(q) [l_b ×]
+//! ```
+//!
+//! With `l_b = 0` these are the identity blocks of eq. (8).
+//!
+//! # Magnetometer (eqs. 6-8, with `C_psi(3,3) = 1`)
+//! The paper does not fuse the raw field. From the magnetometer it takes
+//! only the tilt-compensated true heading `psi_mag`
+//! ([`tilt_compensated_heading`](crate::geo::tilt_compensated_heading)) and
+//! rebuilds a unit field with the *estimated* roll and pitch:
+//!
+//! ```text
+//! m~ = C_phi(phi^) C_theta(theta^) C_psi(psi_mag) m_n
+//!
+//!          | 1    0      0   |            | cos θ  0  -sin θ |           |  cos ψ  sin ψ  0 |
+//! C_phi  = | 0  cos φ  sin φ |  C_theta = |   0    1     0   |  C_psi =  | -sin ψ  cos ψ  0 |
+//!          | 0 -sin φ  cos φ |            | sin θ  0   cos θ |           |    0      0    1 |
+//! ```
+//!
+//! (the paper prints `C_psi(3,3) = 0`, which would drop the vertical field;
+//! with 1 the product is the NED-to-body matrix `R(q)^T` of the Euler angles).
+//! `m_n = [cos I cos D, cos I sin D, sin I]` with inclination `I` down from
+//! horizontal and declination `D` east of north (the paper's text swaps
+//! sine and cosine of `I` there, measuring it from the vertical).
+//!
+//! Eq. (7) writes the model as `R(q)^T m_n`, whose Jacobian `H^m` would let
+//! the magnetometer pull roll and pitch. The model here holds `phi^`,
+//! `theta^` at the current estimate and lets only yaw depend on the state,
+//! which is what the paper's text asks of the pseudo-measurement:
+//!
+//! ```text
+//! h_m(x) = C_phi(phi^) C_theta(theta^) C_psi(psi(q)) m_n
+//! psi(q) = atan2(2(q1 q2 + q0 q3), q0² + q1² - q2² - q3²)
+//! H_m    = [C_phi C_theta (dC_psi/dpsi) m_n] (dpsi/dq)      (3x4, rank one)
+//! ```
+//!
+//! so a magnetometer sample corrects yaw and not roll and pitch. The
+//! homogeneous form of `psi(q)` makes `dpsi/dq` orthogonal to `q`: the
+//! update does not change the quaternion's norm to first order.
+
+use super::state::{GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, quaternion_of};
+use crate::ekf16::process::rotation_jacobian;
+use crate::geo::rotation_matrix;
+use crate::scalar::Scalar;
+use nalgebra::{Matrix3, Quaternion, RowVector4, SMatrix, Vector3};
+
+/// Jacobian of a 3-D measurement with respect to the 16 navigation states.
+pub type MeasurementJacobian<T> = SMatrix<T, 3, NAV_STATES>;
+
+/// GPS antenna position model `r + R(q) l_b` and its Jacobian.
+pub fn gps_position<T: Scalar>(
+    x: &StateVector<T>,
+    lever_arm: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let h = x.fixed_rows::<3>(POS) + rotation_matrix(&q) * lever_arm;
+    let mut jac = MeasurementJacobian::zeros();
+    jac.fixed_view_mut::<3, 3>(0, POS).fill_with_identity();
+    jac.fixed_view_mut::<3, 4>(0, QUAT)
+        .copy_from(&rotation_jacobian(&q, lever_arm));
+    (h, jac)
+}
+
+/// GPS antenna velocity model `v + R(q)((w - b_w) × l_b)` and its Jacobian;
+/// `gyro` is the measured rate (rad/s, body).
+pub fn gps_velocity<T: Scalar>(
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    lever_arm: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let r = rotation_matrix(&q);
+    let u = (gyro - x.fixed_rows::<3>(GYRO_BIAS)).cross(lever_arm);
+    let h = x.fixed_rows::<3>(VEL) + r * u;
+    let mut jac = MeasurementJacobian::zeros();
+    jac.fixed_view_mut::<3, 3>(0, VEL).fill_with_identity();
+    jac.fixed_view_mut::<3, 4>(0, QUAT)
+        .copy_from(&rotation_jacobian(&q, &u));
+    jac.fixed_view_mut::<3, 3>(0, GYRO_BIAS)
+        .copy_from(&(r * lever_arm.cross_matrix()));
+    (h, jac)
+}
+
+/// The paper's `C_phi`: NED-to-body rotation by roll alone.
+pub fn c_roll<T: Scalar>(roll: T) -> Matrix3<T> {
+    let (s, c) = roll.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(o, z, z, z, c, s, z, -s, c)
+}
+
+/// The paper's `C_theta`: NED-to-body rotation by pitch alone.
+pub fn c_pitch<T: Scalar>(pitch: T) -> Matrix3<T> {
+    let (s, c) = pitch.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(c, z, -s, z, o, z, s, z, c)
+}
+
+/// The paper's `C_psi` with its (3,3) entry corrected to 1.
+pub fn c_yaw<T: Scalar>(yaw: T) -> Matrix3<T> {
+    let (s, c) = yaw.sin_cos();
+    let (o, z) = (T::one(), T::zero());
+    Matrix3::new(c, s, z, -s, c, z, z, z, o)
+}
+
+/// `dC_psi/dpsi`.
+fn c_yaw_derivative<T: Scalar>(yaw: T) -> Matrix3<T> {
+    let (s, c) = yaw.sin_cos();
+    let z = T::zero();
+    Matrix3::new(-s, c, z, -c, -s, z, z, z, z)
+}
+
+/// Yaw (radians, `(-pi, pi]`) of a quaternion, homogeneous in `q`.
+pub fn heading<T: Scalar>(q: &Quaternion<T>) -> T {
+    let (a, b) = heading_terms(q);
+    a.atan2(b)
+}
+
+fn heading_terms<T: Scalar>(q: &Quaternion<T>) -> (T, T) {
+    let (q0, q1, q2, q3) = (q.w, q.i, q.j, q.k);
+    (
+        T::lit(2.0) * (q1 * q2 + q0 * q3),
+        q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3,
+    )
+}
+
+/// `dpsi/dq` (1x4) of [`heading`].
+pub fn heading_jacobian<T: Scalar>(q: &Quaternion<T>) -> RowVector4<T> {
+    let (q0, q1, q2, q3) = (q.w, q.i, q.j, q.k);
+    let (a, b) = heading_terms(q);
+    let two = T::lit(2.0);
+    let da = RowVector4::new(q3, q2, q1, q0) * two;
+    let db = RowVector4::new(q0, q1, -q2, -q3) * two;
+    (da * b - db * a) / (a * a + b * b)
+}
+
+/// The pseudo-measurement `m~ = C_phi(roll) C_theta(pitch) C_psi(heading) m_n`
+/// (eq. 6 with `C_psi(3,3) = 1`). Angles in radians, `m_n` unit NED field.
+pub fn mag_pseudo_measurement<T: Scalar>(
+    roll: T,
+    pitch: T,
+    heading: T,
+    field_ned: &Vector3<T>,
+) -> Vector3<T> {
+    c_roll(roll) * c_pitch(pitch) * (c_yaw(heading) * field_ned)
+}
+
+/// The magnetometer model `h_m(x)` with roll and pitch held at `roll`,
+/// `pitch` (the current estimate), and its rank-one Jacobian (yaw only).
+pub fn mag_model<T: Scalar>(
+    x: &StateVector<T>,
+    roll: T,
+    pitch: T,
+    field_ned: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let psi = heading(&q);
+    let tilt = c_roll(roll) * c_pitch(pitch);
+    let h = tilt * (c_yaw(psi) * field_ned);
+    let dh_dpsi = tilt * (c_yaw_derivative(psi) * field_ned);
+    let mut jac = MeasurementJacobian::zeros();
+    jac.fixed_view_mut::<3, 4>(0, QUAT)
+        .copy_from(&(dh_dpsi * heading_jacobian(&q)));
+    (h, jac)
+}

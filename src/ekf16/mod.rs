@@ -1,0 +1,291 @@
+//! The paper's 16-state extended Kalman filter (section 2.1), without delay
+//! handling: GPS fixes are fused as if they described the current instant.
+//!
+//! | part | where | paper |
+//! |---|---|---|
+//! | state `x = [q r v b_f b_w]` | [`state`] | eq. (1) |
+//! | process model, `F`, `A`, `Q` | [`process`] | eqs. (2)-(5) |
+//! | GPS and magnetometer models | [`measurement`] | eqs. (6)-(8) |
+//! | gain, Joseph update, gating | [`kalman`](crate::kalman) | eqs. (9)-(10) |
+//! | configuration | [`config`] | Table 3 defaults |
+//!
+//! # Where this departs from the paper's print
+//! - eq. (3): the (3,1) entry of `R(q)` is `2(q1 q3 - q0 q2)` (printed with `+`);
+//! - eq. (4): the attitude is integrated with the exact rotation over the
+//!   step, not an Euler step (see [`process`]);
+//! - eq. (5): `P = A P A^T + Q` (the transpose is missing);
+//! - eq. (6): `C_psi(3,3) = 1` (printed 0), and `m_n = [cos I cos D, cos I sin D, sin I]`
+//!   with `I` measured down from horizontal;
+//! - eqs. (7)-(8): the magnetometer model holds roll and pitch fixed so it
+//!   corrects yaw only, as the text intends (see [`measurement`]);
+//! - eq. (9): `K = P H^T (H P H^T + R)^-1` (printed `H^T P H^T`);
+//! - additions: Joseph-form update, chi-square gating, the GPS lever arm,
+//!   and the quaternion's covariance kept in the tangent space of the unit
+//!   sphere (see `docs/math.md`).
+//!
+//! # One cycle
+//! - **IMU sample** ([`Navigator::push_imu`]): the step length is the
+//!   difference of consecutive IMU timestamps (any rate, 50 Hz to 1 kHz and
+//!   irregular); the first sample only sets the clock. The rate and specific
+//!   force over a step are the mean of the samples at its two ends. The state
+//!   goes through [`process::propagate`], the covariance through
+//!   `P = A P A^T + Q`.
+//! - **GPS fix** ([`Navigator::push_gps`]): position then velocity, two
+//!   3-D blocks, each gated on its NIS and recorded; the velocity block is
+//!   linearized after the position update (sequential fusion).
+//! - **Magnetometer sample** ([`Navigator::push_mag`]): the heading-only
+//!   pseudo-measurement, gated and recorded.
+//!
+//! # Initialization
+//! Before the first GPS fix the filter only listens: it averages the
+//! accelerometer (running mean over up to `align_window` samples, then an
+//! exponential mean of the same length) and the direction of the
+//! magnetometer field the same way. The first fix after `align_min_samples`
+//! IMU samples sets
+//!
+//! - roll and pitch from the mean specific force
+//!   ([`roll_pitch_from_accel`](crate::geo::roll_pitch_from_accel); valid when
+//!   the vehicle did not accelerate meanwhile);
+//! - yaw from the tilt-compensated heading of the mean field direction (at
+//!   rest, averaging beats the latest sample; the paper's Table 3 noise is
+//!   17 deg of heading per sample), or 0 with the
+//!   variance `initial_yaw_std_no_mag_rad²` without a magnetometer;
+//! - position and velocity from the fix (minus the lever-arm terms), biases 0;
+//! - `P` diagonal from the configured standard deviations, the attitude block
+//!   through [`state::attitude_covariance`].
+//!
+//! [`Ekf16::from_state`] starts from a known state instead.
+//!
+//! # Bad input
+//! Non-finite or implausible samples ([`Error::NonFinite`],
+//! [`Error::OutOfRange`]), duplicates ([`Error::DuplicateTimestamp`]) and
+//! samples going back in time ([`Error::TimeWentBackwards`]) are refused
+//! and leave the filter unchanged; [`Ekf16::refusals`] counts them. An IMU
+//! gap longer than `max_imu_step_us` returns [`Error::StepTooLong`]: the
+//! state is not propagated, the clock moves to the sample and `P` grows by
+//! `Q` of the gap.
+
+pub mod config;
+pub mod measurement;
+pub(crate) mod nav_core;
+pub mod process;
+pub mod state;
+
+pub use config::Ekf16Config;
+pub use state::NavState;
+
+use crate::error::Error;
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
+use crate::geo::LocalFrame;
+use crate::scalar::Scalar;
+use crate::sensors::{GpsFix, ImuSample, MagSample};
+use nalgebra::Vector3;
+use nav_core::{GpsStep, NavCore};
+use state::{NAV_STATES, StateCovariance, StateVector};
+
+/// How many samples were refused or gated out, by kind.
+///
+/// Counting is the only trace a refused sample leaves.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct RefusalCounters {
+    /// IMU samples with a non-finite value.
+    pub imu_non_finite: u32,
+    /// IMU samples above the plausible range, or whose step would make the state non-finite.
+    pub imu_out_of_range: u32,
+    /// IMU samples duplicated or going back in time.
+    pub imu_time: u32,
+    /// IMU steps longer than `max_imu_step_us` (not integrated).
+    pub imu_step_too_long: u32,
+    /// GPS fixes with a non-finite or invalid value.
+    pub gps_invalid: u32,
+    /// GPS fixes duplicated or going back in time.
+    pub gps_time: u32,
+    /// GPS position blocks rejected by the gate.
+    pub gps_position_rejected: u32,
+    /// GPS velocity blocks rejected by the gate.
+    pub gps_velocity_rejected: u32,
+    /// Magnetometer samples with a non-finite or zero field.
+    pub mag_invalid: u32,
+    /// Magnetometer samples duplicated or going back in time.
+    pub mag_time: u32,
+    /// Magnetometer updates rejected by the gate.
+    pub mag_rejected: u32,
+    /// Fusions refused because the innovation covariance had no Cholesky factor.
+    pub not_positive_definite: u32,
+}
+
+/// The 16-state EKF of the paper (section 2.1), GPS fused without delay handling.
+///
+/// ```
+/// use delaynav::{Ekf16, Ekf16Config, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
+/// use nalgebra::Vector3;
+///
+/// let mut ekf = Ekf16::<f64>::new(Ekf16Config::default())?;
+/// // Level and at rest, 100 Hz.
+/// for k in 0..100u64 {
+///     let imu = Imu { t_us: k * 10_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.80665) };
+///     ekf.push_imu(&imu)?;
+/// }
+/// let fix = Gps {
+///     t_us: 990_500,
+///     position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+///     velocity_ned_m_s: Vector3::zeros(),
+///     horizontal_accuracy_m: None,
+///     vertical_accuracy_m: None,
+///     speed_accuracy_m_s: None,
+/// };
+/// assert_eq!(ekf.push_gps(&fix)?, GpsOutcome::Initialized);
+/// let e = ekf.estimate().unwrap();
+/// assert!((e.position_ned_m - Vector3::new(1.0, 2.0, 3.0)).norm() < 1e-12);
+/// assert!(e.euler_rad().xy().norm() < 1e-12); // level
+/// # Ok::<(), delaynav::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Ekf16<T: Scalar> {
+    core: NavCore<T, NAV_STATES>,
+}
+
+impl<T: Scalar> Ekf16<T> {
+    /// An uninitialized filter; it initializes itself from the first GPS fix
+    /// (see the module docs). Fails when the configuration does not validate.
+    pub fn new(config: Ekf16Config<T>) -> Result<Self, Error> {
+        Ok(Self {
+            core: NavCore::new(config, &[])?,
+        })
+    }
+
+    /// A filter initialized at time `t_us` (microseconds, IMU clock) with a
+    /// known state and a diagonal covariance (in state order, see
+    /// [`state`]). For an attitude uncertainty given as roll/pitch/yaw
+    /// standard deviations use [`Ekf16::from_state_with_covariance`] with
+    /// [`state::attitude_covariance`].
+    ///
+    /// The next IMU sample must be later than `t_us`. GPS fixes in geodetic
+    /// coordinates need `config.origin` to match the state's position.
+    pub fn from_state(
+        config: Ekf16Config<T>,
+        t_us: u64,
+        state: &NavState<T>,
+        covariance_diagonal: &StateVector<T>,
+    ) -> Result<Self, Error> {
+        Self::from_state_with_covariance(
+            config,
+            t_us,
+            state,
+            &StateCovariance::from_diagonal(covariance_diagonal),
+        )
+    }
+
+    /// As [`Ekf16::from_state`] with a full covariance (symmetrized).
+    pub fn from_state_with_covariance(
+        config: Ekf16Config<T>,
+        t_us: u64,
+        state: &NavState<T>,
+        covariance: &StateCovariance<T>,
+    ) -> Result<Self, Error> {
+        Ok(Self {
+            core: NavCore::from_state(config, &[], t_us, &state.to_vector(), covariance)?,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Ekf16Config<T> {
+        self.core.config()
+    }
+
+    /// True once initialized (from a GPS fix or a given state).
+    pub fn is_initialized(&self) -> bool {
+        self.core.is_initialized()
+    }
+
+    /// Time of the state (last accepted IMU sample), microseconds.
+    pub fn time_us(&self) -> Option<u64> {
+        self.core.time_us()
+    }
+
+    /// The state vector (eq. 1; meaningful once initialized).
+    pub fn state_vector(&self) -> &StateVector<T> {
+        self.core.state()
+    }
+
+    /// The named navigation state, `None` until initialized.
+    pub fn nav_state(&self) -> Option<NavState<T>> {
+        self.is_initialized()
+            .then(|| NavState::from_vector(self.core.state()))
+    }
+
+    /// The covariance (16x16).
+    pub fn covariance(&self) -> &StateCovariance<T> {
+        self.core.covariance()
+    }
+
+    /// The local NED frame of geodetic GPS fixes, once known.
+    pub fn frame(&self) -> Option<&LocalFrame> {
+        self.core.frame()
+    }
+
+    /// Records of the last GPS fusion: (position, velocity).
+    pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+        self.core.last_gps_fusion()
+    }
+
+    /// Record of the last magnetometer fusion.
+    pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+        self.core.last_mag_fusion()
+    }
+
+    /// Counters of refused and gated-out samples.
+    pub fn refusals(&self) -> RefusalCounters {
+        self.core.refusals()
+    }
+}
+
+impl<T: Scalar> Navigator<T> for Ekf16<T> {
+    fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        self.core.push_imu(imu)
+    }
+
+    /// Fuses position then velocity with the lever-arm models of
+    /// [`measurement`], each block gated on its own.
+    fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let m = match self.core.begin_gps(gps)? {
+            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
+            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
+            GpsStep::Measure(m) => m,
+        };
+        let c = *self.core.config();
+        let gyro = self
+            .core
+            .last_imu()
+            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+        let (h, jac) = measurement::gps_position(&self.core.nav_state(), &c.lever_arm_m);
+        let position = self.core.fuse(
+            m.t_us,
+            &(m.position_ned_m - h),
+            &jac,
+            &m.position_noise,
+            c.gps_position_gate,
+            "gps.position",
+        )?;
+        let (h, jac) = measurement::gps_velocity(&self.core.nav_state(), &gyro, &c.lever_arm_m);
+        let velocity = self.core.fuse(
+            m.t_us,
+            &(m.velocity_ned_m_s - h),
+            &jac,
+            &m.velocity_noise,
+            c.gps_velocity_gate,
+            "gps.velocity",
+        )?;
+        self.core.record_gps(position, velocity);
+        Ok(GpsOutcome::Fused { position, velocity })
+    }
+
+    fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
+        self.core.push_mag(mag)
+    }
+
+    fn estimate(&self) -> Option<Estimate<T>> {
+        self.core.estimate()
+    }
+}

@@ -1,0 +1,730 @@
+//! `NavCore<T, N>`: the filter machinery shared by the 16-state EKF and the
+//! augmented 17-state baseline (crate-internal).
+//!
+//! # Contract
+//! - State: `x` of length `N >= 16`. The first 16 entries are the navigation
+//!   states of [`state`](super::state) (indices `QUAT`, `POS`, `VEL`,
+//!   `ACCEL_BIAS`, `GYRO_BIAS`); entries `16..N` are extra states, each a
+//!   random walk described by an [`ExtraState`] (initial value, initial
+//!   variance, intensity in unit²/s). Their process model is `x' = 0`; the
+//!   core never reads their values.
+//! - Covariance: `P` (`N x N`), symmetric after every operation, its
+//!   quaternion rows and columns projected on the tangent space of the unit
+//!   sphere (`I - q q^T`) after every prediction and fusion.
+//! - Clock: the state describes the instant of the last accepted IMU sample
+//!   ([`NavCore::time_us`]). GPS and magnetometer samples are fused at that
+//!   instant, whatever their own timestamp (this filter has no delay handling;
+//!   timestamps are only checked for order per stream).
+//! - [`NavCore::push_imu`]: checks (finite, plausible, increasing time, step
+//!   length), then propagates the first 16 states with
+//!   [`process::propagate`] and the covariance with `A P A^T + Q`, where
+//!   `F`, `A`, `Q` are the 16-state ones padded with zeros and the extra
+//!   states' intensities on the diagonal of `Q'`. Before initialization it
+//!   only keeps the clock, the last sample and the accelerometer mean (the
+//!   magnetometer direction is averaged by [`NavCore::push_mag`]).
+//! - [`NavCore::begin_gps`]: checks the fix (finite, increasing time),
+//!   converts it to NED (origin: configured, else the initializing fix) and
+//!   picks its noise (receiver accuracies or configured). Before
+//!   initialization it returns [`GpsStep::Waiting`] or initializes from the
+//!   fix ([`GpsStep::Initialized`]); afterwards it returns the
+//!   [`GpsMeasurement`] for the filter's own GPS model, which fuses it with
+//!   [`NavCore::fuse`] and stores the records with [`NavCore::record_gps`].
+//! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
+//!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
+//!   failed fusion leaves `x` and `P` unchanged.
+//! - [`NavCore::push_mag`]: the heading-only magnetometer update of
+//!   [`measurement`](super::measurement) (or keeps the sample for
+//!   initialization).
+//! - Every refused sample leaves `x`, `P` and the clocks as they were (except
+//!   [`Error::StepTooLong`], see its docs) and increments a
+//!   [`RefusalCounters`] field.
+//! - No allocation: every buffer is a fixed-size nalgebra type.
+
+use super::RefusalCounters;
+use super::config::Ekf16Config;
+use super::measurement;
+use super::process;
+use super::state::{
+    ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, WxyzCoords,
+    attitude_covariance, quaternion_of,
+};
+use crate::error::Error;
+use crate::estimate::{Estimate, FusionRecord, MagOutcome};
+use crate::geo::{
+    LocalFrame, euler_from_quaternion, magnetic_field_ned, quaternion_from_euler,
+    roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
+};
+use crate::kalman;
+use crate::scalar::{Scalar, all_finite, us_to_s};
+use crate::sensors::{
+    GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
+    checked_mag,
+};
+use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
+
+/// One state appended after the 16 navigation states: a random walk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ExtraState<T: Scalar> {
+    /// Value at initialization.
+    pub initial: T,
+    /// Variance at initialization.
+    pub initial_variance: T,
+    /// Random-walk intensity (variance growth per second).
+    pub random_walk_intensity: T,
+}
+
+/// Mean of the last samples of a vector: a running mean up to `window`
+/// samples, then an exponential mean of weight `1 / window`. No storage
+/// beyond the mean.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct BoundedMean<T: Scalar> {
+    mean: Vector3<T>,
+    count: u32,
+}
+
+impl<T: Scalar> BoundedMean<T> {
+    fn push(&mut self, v: &Vector3<T>, window: u32) {
+        if self.count < window {
+            self.count += 1;
+        }
+        self.mean += (v - self.mean) / T::lit(f64::from(self.count));
+    }
+}
+
+/// Counts one refusal (saturating: a counter never panics).
+fn bump(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
+
+/// Keeps the quaternion's covariance in the tangent space of the unit
+/// sphere at `q` (unit): `P <- T P T^T` with `T = blockdiag(I - q q^T, I)`.
+///
+/// The quaternion has four components and three degrees of freedom. Left
+/// alone, `P` gains variance along `q` itself (after each renormalization
+/// the old tangent space is slightly off), and since `R(q) u` scales with
+/// `|q|²`, the filter would then "explain" velocity errors by a change of
+/// the quaternion's norm that renormalization throws away, and drift.
+fn project_quaternion_covariance<T: Scalar, const N: usize>(
+    p: &mut SMatrix<T, N, N>,
+    x: &SVector<T, N>,
+) {
+    let q = x.fixed_rows::<4>(QUAT).into_owned();
+    let proj = nalgebra::Matrix4::identity() - q * q.transpose();
+    let rows = proj * p.fixed_rows::<4>(QUAT);
+    p.fixed_rows_mut::<4>(QUAT).copy_from(&rows);
+    let cols = p.fixed_columns::<4>(QUAT) * proj;
+    p.fixed_columns_mut::<4>(QUAT).copy_from(&cols);
+    kalman::symmetrize(p);
+}
+
+/// A checked GPS fix in the filter's NED frame, ready for a GPS model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct GpsMeasurement<T: Scalar> {
+    /// Receive time, microseconds.
+    pub t_us: u64,
+    /// Antenna position, NED, m.
+    pub position_ned_m: Vector3<T>,
+    /// Antenna velocity, NED, m/s.
+    pub velocity_ned_m_s: Vector3<T>,
+    /// Position noise covariance `R_r`, m².
+    pub position_noise: Matrix3<T>,
+    /// Velocity noise covariance `R_v`, (m/s)².
+    pub velocity_noise: Matrix3<T>,
+}
+
+/// What [`NavCore::begin_gps`] did with a fix.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum GpsStep<T: Scalar> {
+    /// Not enough IMU data to initialize; the fix is dropped.
+    Waiting,
+    /// The fix initialized the filter.
+    Initialized,
+    /// Fuse this measurement with the filter's GPS model.
+    Measure(GpsMeasurement<T>),
+}
+
+/// The shared filter machinery; see the module docs for the contract.
+#[derive(Debug, Clone)]
+pub(crate) struct NavCore<T: Scalar, const N: usize> {
+    config: Ekf16Config<T>,
+    x: SVector<T, N>,
+    p: SMatrix<T, N, N>,
+    /// Extra states (indices >= 16): initial values, variances, intensities.
+    extra_initial: SVector<T, N>,
+    extra_variance: SVector<T, N>,
+    extra_intensity: SVector<T, N>,
+    initialized: bool,
+    imu_clock_us: Option<u64>,
+    last_imu: Option<Imu<T>>,
+    gps_clock_us: Option<u64>,
+    mag_clock_us: Option<u64>,
+    accel_mean: BoundedMean<T>,
+    mag_mean: BoundedMean<T>,
+    frame: Option<LocalFrame>,
+    last_gps: Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
+    last_mag: Option<FusionRecord<T, 3>>,
+    refusals: RefusalCounters,
+}
+
+impl<T: Scalar, const N: usize> NavCore<T, N> {
+    /// An uninitialized core; `extras` describes states `16..N` (exactly `N - 16` of them).
+    pub(crate) fn new(config: Ekf16Config<T>, extras: &[ExtraState<T>]) -> Result<Self, Error> {
+        const {
+            assert!(
+                N >= NAV_STATES,
+                "a navigation core has at least the 16 navigation states"
+            )
+        };
+        config.validate()?;
+        if extras.len() != N - NAV_STATES {
+            return Err(Error::InvalidConfig {
+                field: "extra_states",
+                reason: "one description per state beyond the 16 navigation states",
+            });
+        }
+        let mut core = Self {
+            config,
+            x: SVector::zeros(),
+            p: SMatrix::zeros(),
+            extra_initial: SVector::zeros(),
+            extra_variance: SVector::zeros(),
+            extra_intensity: SVector::zeros(),
+            initialized: false,
+            imu_clock_us: None,
+            last_imu: None,
+            gps_clock_us: None,
+            mag_clock_us: None,
+            accel_mean: BoundedMean::default(),
+            mag_mean: BoundedMean::default(),
+            frame: config.origin.map(LocalFrame::new),
+            last_gps: None,
+            last_mag: None,
+            refusals: RefusalCounters::default(),
+        };
+        for (i, e) in extras.iter().enumerate() {
+            let ok = e.initial.is_finite()
+                && e.initial_variance.is_finite()
+                && e.random_walk_intensity.is_finite()
+                && e.initial_variance >= T::zero()
+                && e.random_walk_intensity >= T::zero();
+            if !ok {
+                return Err(Error::InvalidConfig {
+                    field: "extra_states",
+                    reason: "values must be finite, variances and intensities not negative",
+                });
+            }
+            core.extra_initial[NAV_STATES + i] = e.initial;
+            core.extra_variance[NAV_STATES + i] = e.initial_variance;
+            core.extra_intensity[NAV_STATES + i] = e.random_walk_intensity;
+        }
+        Ok(core)
+    }
+
+    /// An initialized core at time `t_us` with state `x` and covariance `p`
+    /// (symmetrized; the quaternion is normalized).
+    pub(crate) fn from_state(
+        config: Ekf16Config<T>,
+        extras: &[ExtraState<T>],
+        t_us: u64,
+        x: &SVector<T, N>,
+        p: &SMatrix<T, N, N>,
+    ) -> Result<Self, Error> {
+        let mut core = Self::new(config, extras)?;
+        if !all_finite(x) {
+            return Err(Error::NonFinite {
+                field: "initial state",
+            });
+        }
+        if !all_finite(p) || (0..N).any(|i| p[(i, i)] < T::zero()) {
+            return Err(Error::InvalidConfig {
+                field: "initial covariance",
+                reason: "must be finite with a non-negative diagonal",
+            });
+        }
+        let norm = quaternion_of(x).norm();
+        if norm <= T::lit(1e-3) {
+            return Err(Error::OutOfRange {
+                field: "initial attitude",
+                reason: "quaternion must not be zero",
+            });
+        }
+        core.x = *x;
+        core.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
+        core.p = *p;
+        project_quaternion_covariance(&mut core.p, &core.x);
+        core.imu_clock_us = Some(t_us);
+        core.initialized = true;
+        Ok(core)
+    }
+
+    /// The configuration.
+    pub(crate) fn config(&self) -> &Ekf16Config<T> {
+        &self.config
+    }
+
+    /// True once initialized.
+    pub(crate) fn is_initialized(&self) -> bool {
+        self.initialized
+    }
+
+    /// Time of the state (the last accepted IMU sample), microseconds.
+    pub(crate) fn time_us(&self) -> Option<u64> {
+        self.imu_clock_us
+    }
+
+    /// The full state vector.
+    pub(crate) fn state(&self) -> &SVector<T, N> {
+        &self.x
+    }
+
+    /// The first 16 (navigation) states.
+    pub(crate) fn nav_state(&self) -> StateVector<T> {
+        self.x.fixed_rows::<NAV_STATES>(0).into_owned()
+    }
+
+    /// The covariance.
+    pub(crate) fn covariance(&self) -> &SMatrix<T, N, N> {
+        &self.p
+    }
+
+    /// The last accepted IMU sample.
+    pub(crate) fn last_imu(&self) -> Option<&Imu<T>> {
+        self.last_imu.as_ref()
+    }
+
+    /// The local NED frame, once known.
+    pub(crate) fn frame(&self) -> Option<&LocalFrame> {
+        self.frame.as_ref()
+    }
+
+    /// Refusal counters.
+    pub(crate) fn refusals(&self) -> RefusalCounters {
+        self.refusals
+    }
+
+    /// The last GPS fusion records (position, velocity).
+    pub(crate) fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+        self.last_gps
+    }
+
+    /// The last magnetometer fusion record.
+    pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+        self.last_mag
+    }
+
+    /// Pads a Jacobian over the 16 navigation states with zero columns for the extra states.
+    pub(crate) fn widen<const M: usize>(h: &SMatrix<T, M, NAV_STATES>) -> SMatrix<T, M, N> {
+        let mut out = SMatrix::<T, M, N>::zeros();
+        out.fixed_view_mut::<M, NAV_STATES>(0, 0).copy_from(h);
+        out
+    }
+
+    fn widen_square(m: &SMatrix<T, NAV_STATES, NAV_STATES>) -> SMatrix<T, N, N> {
+        let mut out = SMatrix::<T, N, N>::zeros();
+        out.fixed_view_mut::<NAV_STATES, NAV_STATES>(0, 0)
+            .copy_from(m);
+        out
+    }
+
+    /// `F` (padded) and `Q` over `dt` at the current state with the given held inputs.
+    fn jacobian_and_noise(
+        &self,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+        dt: T,
+    ) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
+        let x16 = self.nav_state();
+        let f = Self::widen_square(&process::jacobian(&x16, gyro, accel));
+        let mut intensity = Self::widen_square(&process::noise_intensity(&x16, &self.config));
+        for i in NAV_STATES..N {
+            intensity[(i, i)] = self.extra_intensity[i];
+        }
+        let q = process::discretize_noise(&f, &intensity, dt);
+        (f, q)
+    }
+
+    fn accumulate_accel(&mut self, accel: &Vector3<T>) {
+        self.accel_mean.push(accel, self.config.align_window);
+    }
+
+    /// Feeds one IMU sample (see the module docs).
+    ///
+    /// The rate and specific force held over the step `[t_prev, t]` are the
+    /// mean of the samples at both ends (trapezoidal; equal to a zero-order
+    /// hold when the inputs are constant).
+    pub(crate) fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
+        let max_w = self.config.max_gyro_rad_s;
+        let max_f = self.config.max_accel_m_s2;
+        if s.gyro_rad_s.iter().any(|v| v.abs() > max_w) {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu.gyro",
+                reason: "above the configured max_gyro_rad_s",
+            });
+        }
+        if s.accel_m_s2.iter().any(|v| v.abs() > max_f) {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu.accel",
+                reason: "above the configured max_accel_m_s2",
+            });
+        }
+        check_time("imu", self.imu_clock_us, s.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.imu_time))?;
+        let Some(clock) = self.imu_clock_us else {
+            self.imu_clock_us = Some(s.t_us);
+            self.last_imu = Some(s);
+            self.accumulate_accel(&s.accel_m_s2);
+            return Ok(());
+        };
+        let dt_us = s.t_us - clock;
+        let (gyro, accel) = match self.last_imu {
+            Some(prev) => (
+                (prev.gyro_rad_s + s.gyro_rad_s) * T::lit(0.5),
+                (prev.accel_m_s2 + s.accel_m_s2) * T::lit(0.5),
+            ),
+            None => (s.gyro_rad_s, s.accel_m_s2),
+        };
+        if dt_us > self.config.max_imu_step_us {
+            if self.initialized {
+                let (_, q) = self.jacobian_and_noise(&gyro, &accel, us_to_s(dt_us));
+                let mut p = self.p + q;
+                kalman::symmetrize(&mut p);
+                if all_finite(&p) {
+                    self.p = p;
+                }
+            } else {
+                self.accumulate_accel(&s.accel_m_s2);
+            }
+            self.imu_clock_us = Some(s.t_us);
+            self.last_imu = Some(s);
+            bump(&mut self.refusals.imu_step_too_long);
+            return Err(Error::StepTooLong {
+                dt_us,
+                max_us: self.config.max_imu_step_us,
+            });
+        }
+        if !self.initialized {
+            self.imu_clock_us = Some(s.t_us);
+            self.last_imu = Some(s);
+            self.accumulate_accel(&s.accel_m_s2);
+            return Ok(());
+        }
+        let dt: T = us_to_s(dt_us);
+        let x16 = process::propagate(
+            &self.nav_state(),
+            &gyro,
+            &accel,
+            dt,
+            self.config.gravity_m_s2,
+        );
+        let (f, q) = self.jacobian_and_noise(&gyro, &accel, dt);
+        let a = process::transition(&f, dt);
+        let mut p = a * self.p * a.transpose() + q;
+        let mut x = self.x;
+        x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
+        project_quaternion_covariance(&mut p, &x);
+        if !(all_finite(&x) && all_finite(&p)) {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu",
+                reason: "the step would make the state non-finite",
+            });
+        }
+        self.x = x;
+        self.p = p;
+        self.imu_clock_us = Some(s.t_us);
+        self.last_imu = Some(s);
+        Ok(())
+    }
+
+    /// Checks and converts a GPS fix; initializes the filter from it when
+    /// the filter is not yet initialized (see the module docs).
+    pub(crate) fn begin_gps<G: GpsFix<T> + ?Sized>(
+        &mut self,
+        gps: &G,
+    ) -> Result<GpsStep<T>, Error> {
+        let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
+        check_time("gps", self.gps_clock_us, fix.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
+        let (frame, position) = match fix.position {
+            GpsPosition::Ned(p) => (self.frame, p),
+            GpsPosition::Geodetic(g) => {
+                let frame = self.frame.unwrap_or_else(|| LocalFrame::new(g));
+                (Some(frame), frame.to_ned_t(&g))
+            }
+        };
+        if !all_finite(&position) {
+            bump(&mut self.refusals.gps_invalid);
+            return Err(Error::NonFinite {
+                field: "gps.position",
+            });
+        }
+        let c = &self.config;
+        let use_rx = c.use_receiver_accuracy;
+        let pick = |reported: Option<T>, configured: T| match reported {
+            Some(a) if use_rx => a * a,
+            _ => configured * configured,
+        };
+        let h = pick(fix.horizontal_accuracy_m, c.gps_horizontal_std_m);
+        let v = pick(fix.vertical_accuracy_m, c.gps_vertical_std_m);
+        let s = pick(fix.speed_accuracy_m_s, c.gps_velocity_std_m_s);
+        let m = GpsMeasurement {
+            t_us: fix.t_us,
+            position_ned_m: position,
+            velocity_ned_m_s: fix.velocity_ned_m_s,
+            position_noise: Matrix3::from_diagonal(&Vector3::new(h, h, v)),
+            velocity_noise: Matrix3::identity() * s,
+        };
+        if self.initialized {
+            self.gps_clock_us = Some(fix.t_us);
+            self.frame = frame;
+            return Ok(GpsStep::Measure(m));
+        }
+        if self.last_imu.is_none() || self.accel_mean.count < self.config.align_min_samples {
+            self.gps_clock_us = Some(fix.t_us);
+            return Ok(GpsStep::Waiting);
+        }
+        self.initialize(&m)?;
+        self.gps_clock_us = Some(fix.t_us);
+        self.frame = frame;
+        Ok(GpsStep::Initialized)
+    }
+
+    /// Initial state and covariance from the accelerometer mean, the latest
+    /// magnetometer direction and a GPS fix.
+    fn initialize(&mut self, fix: &GpsMeasurement<T>) -> Result<(), Error> {
+        let c = self.config;
+        let (roll, pitch) = roll_pitch_from_accel(&self.accel_mean.mean);
+        let (yaw, yaw_std) = match self.mag_mean.count {
+            1.. => (
+                tilt_compensated_heading(&self.mag_mean.mean, roll, pitch, c.mag_declination_rad),
+                c.initial_yaw_std_rad,
+            ),
+            0 => (T::zero(), c.initial_yaw_std_no_mag_rad),
+        };
+        let q = quaternion_from_euler(roll, pitch, yaw);
+        let rot = rotation_matrix(q.quaternion());
+        let gyro = self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+        let mut x = self.extra_initial;
+        x.fixed_rows_mut::<4>(QUAT)
+            .copy_from(&q.quaternion().coords_wxyz());
+        x.fixed_rows_mut::<3>(POS)
+            .copy_from(&(fix.position_ned_m - rot * c.lever_arm_m));
+        x.fixed_rows_mut::<3>(VEL)
+            .copy_from(&(fix.velocity_ned_m_s - rot * gyro.cross(&c.lever_arm_m)));
+        let mut p = SMatrix::<T, N, N>::from_diagonal(&self.extra_variance);
+        p.fixed_view_mut::<4, 4>(QUAT, QUAT)
+            .copy_from(&attitude_covariance(
+                &q,
+                c.initial_tilt_std_rad,
+                c.initial_tilt_std_rad,
+                yaw_std,
+            ));
+        let sq = |v: T| v * v;
+        for i in 0..3 {
+            p[(POS + i, POS + i)] = sq(c.initial_position_std_m);
+            p[(VEL + i, VEL + i)] = sq(c.initial_velocity_std_m_s);
+            p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = sq(c.initial_accel_bias_std_m_s2);
+            p[(GYRO_BIAS + i, GYRO_BIAS + i)] = sq(c.initial_gyro_bias_std_rad_s);
+        }
+        if !(all_finite(&x) && all_finite(&p)) {
+            return Err(Error::NonFinite {
+                field: "initial state",
+            });
+        }
+        self.x = x;
+        self.p = p;
+        self.initialized = true;
+        Ok(())
+    }
+
+    /// Fuses one `M`-dimensional block `y = z - h(x)`, `H` (`M x N`), `R`
+    /// with the given chi-square gate (see [`kalman::joseph_update`]), then
+    /// renormalizes the quaternion. A fusion that would leave the quaternion
+    /// far from unit norm (an absurd correction) is reverted and reported as
+    /// rejected.
+    pub(crate) fn fuse<const M: usize>(
+        &mut self,
+        t_us: u64,
+        innovation: &SVector<T, M>,
+        h: &SMatrix<T, M, N>,
+        r: &SMatrix<T, M, M>,
+        gate: T,
+        measurement: &'static str,
+    ) -> Result<FusionRecord<T, M>, Error> {
+        let (x_before, p_before) = (self.x, self.p);
+        let mut record = kalman::joseph_update(
+            &mut self.x,
+            &mut self.p,
+            innovation,
+            h,
+            r,
+            gate,
+            t_us,
+            measurement,
+        )
+        .inspect_err(|_| bump(&mut self.refusals.not_positive_definite))?;
+        if record.fused {
+            let norm = quaternion_of(&self.x).norm();
+            if norm > T::lit(0.5) && norm < T::lit(2.0) {
+                self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
+                project_quaternion_covariance(&mut self.p, &self.x);
+            } else {
+                self.x = x_before;
+                self.p = p_before;
+                record.fused = false;
+                record.test_ratio = T::lit(f64::INFINITY);
+            }
+        }
+        Ok(record)
+    }
+
+    /// Stores the records of one GPS fusion and counts rejections.
+    pub(crate) fn record_gps(
+        &mut self,
+        position: FusionRecord<T, 3>,
+        velocity: FusionRecord<T, 3>,
+    ) {
+        if !position.fused {
+            bump(&mut self.refusals.gps_position_rejected);
+        }
+        if !velocity.fused {
+            bump(&mut self.refusals.gps_velocity_rejected);
+        }
+        self.last_gps = Some((position, velocity));
+    }
+
+    /// Feeds one magnetometer sample: kept for the initial heading before
+    /// initialization, fused as the heading-only pseudo-measurement after.
+    pub(crate) fn push_mag<M: MagSample<T> + ?Sized>(
+        &mut self,
+        mag: &M,
+    ) -> Result<MagOutcome<T>, Error> {
+        let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
+        check_time("mag", self.mag_clock_us, m.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.mag_time))?;
+        if !self.initialized {
+            self.mag_clock_us = Some(m.t_us);
+            self.mag_mean
+                .push(&m.field_body.normalize(), self.config.align_window);
+            return Ok(MagOutcome::Stored);
+        }
+        let c = &self.config;
+        let x16 = self.nav_state();
+        let euler = euler_from_quaternion(&quaternion_of(&x16));
+        let (roll, pitch) = (euler.x, euler.y);
+        let field_ned = magnetic_field_ned(c.mag_inclination_rad, c.mag_declination_rad);
+        let heading_mag =
+            tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad);
+        let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);
+        let (hx, h16) = measurement::mag_model(&x16, roll, pitch, &field_ned);
+        let r = Matrix3::identity() * c.mag_noise_variance;
+        let gate = c.mag_gate;
+        let record = self.fuse(m.t_us, &(z - hx), &Self::widen(&h16), &r, gate, "mag")?;
+        self.mag_clock_us = Some(m.t_us);
+        if !record.fused {
+            bump(&mut self.refusals.mag_rejected);
+        }
+        self.last_mag = Some(record);
+        Ok(MagOutcome::Fused(record))
+    }
+
+    /// The current solution, `None` until initialized.
+    pub(crate) fn estimate(&self) -> Option<Estimate<T>> {
+        if !self.initialized {
+            return None;
+        }
+        let x = &self.x;
+        Some(Estimate {
+            t_us: self.imu_clock_us.unwrap_or(0),
+            attitude: UnitQuaternion::new_normalize(quaternion_of(x)),
+            position_ned_m: x.fixed_rows::<3>(POS).into_owned(),
+            velocity_ned_m_s: x.fixed_rows::<3>(VEL).into_owned(),
+            accel_bias_m_s2: x.fixed_rows::<3>(ACCEL_BIAS).into_owned(),
+            gyro_bias_rad_s: x.fixed_rows::<3>(GYRO_BIAS).into_owned(),
+            covariance_diagonal: self.p.diagonal().fixed_rows::<NAV_STATES>(0).into_owned(),
+            delay_s: None,
+            delay_std_s: None,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The core with an extra state, as the augmented baseline uses it.
+    use super::*;
+    use crate::sensors::{Gps, Imu};
+
+    const EXTRA: ExtraState<f64> = ExtraState {
+        initial: 0.2,
+        initial_variance: 0.01,
+        random_walk_intensity: 1e-4,
+    };
+
+    fn feed<const N: usize>(core: &mut NavCore<f64, N>) {
+        for k in 0..20u64 {
+            let imu = Imu {
+                t_us: k * 10_000,
+                gyro_rad_s: Vector3::new(0.01, -0.02, 0.05),
+                accel_m_s2: Vector3::new(0.3, 0.1, -9.7),
+            };
+            core.push_imu(&imu).unwrap();
+            if k == 5 || k == 15 {
+                let gps = Gps {
+                    t_us: k * 10_000,
+                    position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+                    velocity_ned_m_s: Vector3::new(0.5, 0.0, 0.0),
+                    horizontal_accuracy_m: None,
+                    vertical_accuracy_m: None,
+                    speed_accuracy_m_s: None,
+                };
+                if let GpsStep::Measure(m) = core.begin_gps(&gps).unwrap() {
+                    let x16 = core.nav_state();
+                    let (h, jac) = measurement::gps_position(&x16, &Vector3::zeros());
+                    let gate = core.config().gps_position_gate;
+                    let rec = core
+                        .fuse(
+                            m.t_us,
+                            &(m.position_ned_m - h),
+                            &NavCore::<f64, N>::widen(&jac),
+                            &m.position_noise,
+                            gate,
+                            "gps.position",
+                        )
+                        .unwrap();
+                    assert!(rec.fused);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_extra_random_walk_state_rides_along_without_touching_the_navigation_states() {
+        let config = Ekf16Config::<f64>::default();
+        assert!(NavCore::<f64, 17>::new(config, &[]).is_err());
+        let mut plain = NavCore::<f64, 16>::new(config, &[]).unwrap();
+        let mut augmented = NavCore::<f64, 17>::new(config, &[EXTRA]).unwrap();
+        feed(&mut plain);
+        feed(&mut augmented);
+        // The extra state is uncorrelated and unobserved: the navigation
+        // states and their covariance are those of the plain filter...
+        assert_eq!(augmented.nav_state(), plain.nav_state());
+        let p16 = augmented
+            .covariance()
+            .fixed_view::<16, 16>(0, 0)
+            .into_owned();
+        assert!((p16 - plain.covariance()).amax() < 1e-15);
+        // ...and the extra state kept its value while its variance grew by
+        // the random-walk intensity over the 0.14 s since initialization.
+        assert_eq!(augmented.state()[16], EXTRA.initial);
+        let grown = EXTRA.initial_variance + EXTRA.random_walk_intensity * 0.14;
+        assert!((augmented.covariance()[(16, 16)] - grown).abs() < 1e-15);
+        assert_eq!(augmented.covariance().row(16).columns(0, 16).amax(), 0.0);
+        assert_eq!(
+            augmented.estimate().unwrap().covariance_diagonal,
+            plain.estimate().unwrap().covariance_diagonal
+        );
+    }
+}

@@ -1,0 +1,229 @@
+//! Process model of the 16-state EKF: pure functions, no covariance, no
+//! filter state. [`propagate`] is also the forward-reckoning step of the
+//! delay-compensated navigator.
+//!
+//! # Continuous-time model (paper eq. 2)
+//! With the measured rate `w` (rad/s, body) and specific force `f` (m/s²,
+//! body), both held over the step:
+//!
+//! ```text
+//! q' = 1/2 Ξ(q) (w - b_w)            = 1/2 q ⊗ [0, w - b_w]
+//! r' = v                               (m/s, NED)
+//! v' = R(q) (f - b_f) + [0, 0, g]      (m/s², NED; g > 0, down)
+//! b_f' = 0,  b_w' = 0                  (random walks, in Q only)
+//!
+//!        | -q1 -q2 -q3 |
+//! Ξ(q) = |  q0 -q3  q2 |     the 4x3 matrix of eq. (2), see [`xi`]
+//!        |  q3  q0 -q1 |
+//!        | -q2  q1  q0 |
+//! ```
+//!
+//! `R(q)` is eq. (3) with the sign of its (3,1) entry corrected
+//! ([`rotation_matrix`]). Earth rate and transport rate are neglected, as in
+//! the paper.
+//!
+//! # Discrete propagation ([`propagate`])
+//! The paper's eq. (4) is one Euler step `x += dt x'`. Here the attitude is
+//! integrated with the exact rotation of the bias-corrected rate over the
+//! step, and velocity and position with the specific force rotated at
+//! mid-step (exact for a constant rate and specific force):
+//!
+//! ```text
+//! q_{k+1} = q_k ⊗ exp((w - b_w) dt)                    (renormalized)
+//! a       = R(q_k ⊗ exp((w - b_w) dt / 2)) (f - b_f) + [0, 0, g]
+//! v_{k+1} = v_k + a dt
+//! r_{k+1} = r_k + v_k dt + a dt² / 2
+//! ```
+//!
+//! # Linearization and discretization
+//! [`jacobian`] is `F = ∂x'/∂x` of the continuous model (16x16). Its non-zero blocks:
+//!
+//! ```text
+//! ∂q'/∂q   = 1/2 Ω(w - b_w)      (q ⊗ [0, u] = Ω(u) q, see [`omega`])
+//! ∂q'/∂b_w = -1/2 Ξ(q)
+//! ∂r'/∂v   = I
+//! ∂v'/∂q   = ∂(R(q) u)/∂q,  u = f - b_f     (see [`rotation_jacobian`])
+//! ∂v'/∂b_f = -R(q)
+//! ```
+//!
+//! [`transition`] discretizes it to second order, `A = I + F dt + (F dt)²/2`,
+//! used in the covariance prediction of eq. (5), written here with the
+//! transpose the paper's print lost: `P = A P A^T + Q`.
+//!
+//! # Process noise ([`noise_intensity`], [`discretize_noise`])
+//! The gyro white noise `n_w` enters as `q' = 1/2 Ξ(q)(w - n_w - b_w)`, the
+//! accelerometer's as `v' = R(q)(f - n_f - b_f) + g`, the biases drift as
+//! random walks. With `G` the noise-input matrix (blocks `-1/2 Ξ(q)`,
+//! `-R(q)`, `I`, `I`) and `Q_c = diag(σ_w², σ_f², σ_bf², σ_bw²)` the
+//! densities squared, the continuous intensity is `Q' = G Q_c G^T` and
+//!
+//! ```text
+//! Q = ∫_0^dt (I + F s) Q' (I + F s)^T ds
+//!   = Q' dt + (F Q' + Q' F^T) dt²/2 + F Q' F^T dt³/3
+//! ```
+//!
+//! which is positive semi-definite for any `dt` (an integral of PSD terms)
+//! and carries velocity noise into position (`σ_f² dt³/3`).
+
+use super::state::{
+    ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateCovariance, StateVector, VEL, quaternion_of,
+};
+use crate::ekf16::config::Ekf16Config;
+use crate::geo::{quaternion_from_rotation_vector, rotation_matrix};
+use crate::scalar::Scalar;
+use nalgebra::{Matrix3, Matrix4, Quaternion, SMatrix, UnitQuaternion, Vector3};
+
+/// The 4x3 matrix `Ξ(q)` of eq. (2): `q ⊗ [0, u] = Ξ(q) u`.
+pub fn xi<T: Scalar>(q: &Quaternion<T>) -> SMatrix<T, 4, 3> {
+    let (q0, q1, q2, q3) = (q.w, q.i, q.j, q.k);
+    SMatrix::<T, 4, 3>::new(-q1, -q2, -q3, q0, -q3, q2, q3, q0, -q1, -q2, q1, q0)
+}
+
+/// The 4x4 matrix `Ω(u)` with `q ⊗ [0, u] = Ω(u) q` (quaternions as `[q0 q1 q2 q3]`).
+pub fn omega<T: Scalar>(u: &Vector3<T>) -> Matrix4<T> {
+    let z = T::zero();
+    Matrix4::new(
+        z, -u.x, -u.y, -u.z, //
+        u.x, z, u.z, -u.y, //
+        u.y, -u.z, z, u.x, //
+        u.z, u.y, -u.x, z,
+    )
+}
+
+/// `∂(R(q) u)/∂q` (3x4) for a fixed body vector `u`, with `R(q)` the
+/// homogeneous form of eq. (3) (`R(q) u = (q0² - |q_v|²) u + 2 (q_v·u) q_v + 2 q0 q_v × u`).
+pub fn rotation_jacobian<T: Scalar>(q: &Quaternion<T>, u: &Vector3<T>) -> SMatrix<T, 3, 4> {
+    let two = T::lit(2.0);
+    let q0 = q.w;
+    let qv = Vector3::new(q.i, q.j, q.k);
+    let d_q0 = (u * q0 + qv.cross(u)) * two;
+    let d_qv = (-u * qv.transpose() + Matrix3::identity() * qv.dot(u) + qv * u.transpose()
+        - u.cross_matrix() * q0)
+        * two;
+    let mut j = SMatrix::<T, 3, 4>::zeros();
+    j.fixed_columns_mut::<1>(0).copy_from(&d_q0);
+    j.fixed_columns_mut::<3>(1).copy_from(&d_qv);
+    j
+}
+
+/// The continuous-time model `x' = f(x, w, f)` of eq. (2).
+///
+/// `gyro` rad/s and `accel` m/s² in body FRD, `gravity` m/s² (positive).
+pub fn derivative<T: Scalar>(
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+    gravity: T,
+) -> StateVector<T> {
+    let q = quaternion_of(x);
+    let w = gyro - x.fixed_rows::<3>(GYRO_BIAS);
+    let f = accel - x.fixed_rows::<3>(ACCEL_BIAS);
+    let mut d = StateVector::zeros();
+    d.fixed_rows_mut::<4>(QUAT)
+        .copy_from(&(xi(&q) * w * T::lit(0.5)));
+    d.fixed_rows_mut::<3>(POS)
+        .copy_from(&x.fixed_rows::<3>(VEL));
+    let a = rotation_matrix(&q) * f + Vector3::new(T::zero(), T::zero(), gravity);
+    d.fixed_rows_mut::<3>(VEL).copy_from(&a);
+    d
+}
+
+/// `F = ∂f/∂x` (16x16) of the continuous model ([`derivative`]).
+pub fn jacobian<T: Scalar>(
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+) -> StateCovariance<T> {
+    let half = T::lit(0.5);
+    let q = quaternion_of(x);
+    let w = gyro - x.fixed_rows::<3>(GYRO_BIAS);
+    let f = accel - x.fixed_rows::<3>(ACCEL_BIAS);
+    let mut jac = StateCovariance::zeros();
+    jac.fixed_view_mut::<4, 4>(QUAT, QUAT)
+        .copy_from(&(omega(&w) * half));
+    jac.fixed_view_mut::<4, 3>(QUAT, GYRO_BIAS)
+        .copy_from(&(xi(&q) * (-half)));
+    jac.fixed_view_mut::<3, 3>(POS, VEL).fill_with_identity();
+    jac.fixed_view_mut::<3, 4>(VEL, QUAT)
+        .copy_from(&rotation_jacobian(&q, &f));
+    jac.fixed_view_mut::<3, 3>(VEL, ACCEL_BIAS)
+        .copy_from(&(-rotation_matrix(&q)));
+    jac
+}
+
+/// One step of the process model over `dt` seconds with the rate `gyro` and
+/// specific force `accel` held over the step (see the module docs for the
+/// scheme). The quaternion of `x` need not be unit; the result's is.
+pub fn propagate<T: Scalar>(
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+    dt: T,
+    gravity: T,
+) -> StateVector<T> {
+    let q = UnitQuaternion::new_normalize(quaternion_of(x));
+    let w = gyro - x.fixed_rows::<3>(GYRO_BIAS);
+    let f = accel - x.fixed_rows::<3>(ACCEL_BIAS);
+    let q_mid = q * quaternion_from_rotation_vector(&(w * (dt * T::lit(0.5))));
+    let a = q_mid * f + Vector3::new(T::zero(), T::zero(), gravity);
+    let q_next = UnitQuaternion::new_normalize(
+        (q * quaternion_from_rotation_vector(&(w * dt))).into_inner(),
+    );
+    let v = x.fixed_rows::<3>(VEL).into_owned();
+    let mut out = *x;
+    let qn = q_next.quaternion();
+    out.fixed_rows_mut::<4>(QUAT)
+        .copy_from(&nalgebra::Vector4::new(qn.w, qn.i, qn.j, qn.k));
+    out.fixed_rows_mut::<3>(POS)
+        .copy_from(&(x.fixed_rows::<3>(POS) + v * dt + a * (dt * dt * T::lit(0.5))));
+    out.fixed_rows_mut::<3>(VEL).copy_from(&(v + a * dt));
+    out
+}
+
+/// `A = I + F dt + (F dt)² / 2`, the second-order discretization of `F`.
+pub fn transition<T: Scalar, const N: usize>(f: &SMatrix<T, N, N>, dt: T) -> SMatrix<T, N, N> {
+    let fdt = f * dt;
+    SMatrix::<T, N, N>::identity() + fdt + fdt * fdt * T::lit(0.5)
+}
+
+/// Continuous noise intensity `Q' = G Q_c G^T` (16x16) of the navigation
+/// states at the attitude of `x` (see the module docs).
+pub fn noise_intensity<T: Scalar>(
+    x: &StateVector<T>,
+    config: &Ekf16Config<T>,
+) -> StateCovariance<T> {
+    let q = quaternion_of(x);
+    let sw2 = config.gyro_noise_density * config.gyro_noise_density;
+    let sf2 = config.accel_noise_density * config.accel_noise_density;
+    let g_q = xi(&q) * T::lit(0.5);
+    let r = rotation_matrix(&q);
+    let mut qc = StateCovariance::zeros();
+    qc.fixed_view_mut::<4, 4>(QUAT, QUAT)
+        .copy_from(&(g_q * g_q.transpose() * sw2));
+    qc.fixed_view_mut::<3, 3>(VEL, VEL)
+        .copy_from(&(r * r.transpose() * sf2));
+    let bf2 = config.accel_bias_random_walk * config.accel_bias_random_walk;
+    let bw2 = config.gyro_bias_random_walk * config.gyro_bias_random_walk;
+    for i in 0..3 {
+        qc[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = bf2;
+        qc[(GYRO_BIAS + i, GYRO_BIAS + i)] = bw2;
+    }
+    debug_assert_eq!(GYRO_BIAS + 3, NAV_STATES);
+    qc
+}
+
+/// `Q = Q' dt + (F Q' + Q' F^T) dt²/2 + F Q' F^T dt³/3`, the covariance of
+/// the process noise accumulated over `dt` seconds (see the module docs).
+pub fn discretize_noise<T: Scalar, const N: usize>(
+    f: &SMatrix<T, N, N>,
+    intensity: &SMatrix<T, N, N>,
+    dt: T,
+) -> SMatrix<T, N, N> {
+    let fq = f * intensity;
+    let dt2 = dt * dt;
+    let mut q = intensity * dt
+        + (fq + fq.transpose()) * (dt2 * T::lit(0.5))
+        + fq * f.transpose() * (dt2 * dt / T::lit(3.0));
+    crate::kalman::symmetrize(&mut q);
+    q
+}
