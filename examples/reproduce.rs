@@ -22,9 +22,6 @@
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
 
-// EKF16-PENDING: the scoring code has no caller until the first estimator lands.
-#![allow(dead_code)]
-
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
 use delaynav::geo::wrap_pi;
@@ -32,7 +29,7 @@ use delaynav::sim::{
     NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, csv::write_run,
     delay_bound_s, noise_floor,
 };
-// EKF16-PENDING use delaynav::{Ekf16, Ekf16Config};
+use delaynav::{Ekf16, Ekf16Config};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -130,30 +127,36 @@ struct Estimator {
 
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
-    vec![
-        // EKF16-PENDING Estimator { name: "ekf16", run: |s| score(Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"), s) },
-    ]
+    vec![Estimator {
+        name: "ekf16",
+        run: |s| {
+            score(
+                Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
+                s,
+            )
+        },
+    }]
 }
 
-// EKF16-PENDING /// The 16-state EKF configured with the simulator's own noise (Table 3 read
-// EKF16-PENDING /// per sample at the IMU rate) and magnetic field.
-// EKF16-PENDING fn ekf16_config(sim: &SimConfig) -> Ekf16Config<f64> {
-// EKF16-PENDING     let s = &sim.sensors;
-// EKF16-PENDING     let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
-// EKF16-PENDING     Ekf16Config {
-// EKF16-PENDING         mag_inclination_rad: s.inclination_rad,
-// EKF16-PENDING         mag_declination_rad: s.declination_rad,
-// EKF16-PENDING         mag_noise_variance: s.mag_noise_var,
-// EKF16-PENDING         gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
-// EKF16-PENDING         gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
-// EKF16-PENDING         gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
-// EKF16-PENDING         ..Ekf16Config::with_per_sample_imu_variances(
-// EKF16-PENDING             s.gyro_noise_var_rad2_s2,
-// EKF16-PENDING             s.accel_noise_var_g2 * g2,
-// EKF16-PENDING             s.imu_rate_hz,
-// EKF16-PENDING         )
-// EKF16-PENDING     }
-// EKF16-PENDING }
+/// The 16-state EKF configured with the simulator's own noise (Table 3 read
+/// per sample at the IMU rate) and magnetic field.
+fn ekf16_config(sim: &SimConfig) -> Ekf16Config<f64> {
+    let s = &sim.sensors;
+    let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
+    Ekf16Config {
+        mag_inclination_rad: s.inclination_rad,
+        mag_declination_rad: s.declination_rad,
+        mag_noise_variance: s.mag_noise_var,
+        gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
+        gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
+        gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
+        ..Ekf16Config::with_per_sample_imu_variances(
+            s.gyro_noise_var_rad2_s2,
+            s.accel_noise_var_g2 * g2,
+            s.imu_rate_hz,
+        )
+    }
+}
 
 /// Root mean square accumulator.
 #[derive(Default, Clone, Copy)]
