@@ -26,8 +26,8 @@ use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
 use delaynav::geo::wrap_pi;
 use delaynav::sim::{
-    NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, csv::write_run,
-    delay_bound_s, noise_floor,
+    DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
+    csv::write_run, delay_bound_s, noise_floor,
 };
 use delaynav::{Ekf16, Ekf16Config};
 use serde_json::{Value, json};
@@ -38,7 +38,7 @@ use std::time::Instant;
 /// Window of GPS fixes over which the delay bound counts information, µs.
 const DELAY_BOUND_WINDOW_US: u64 = 5_000_000;
 /// Spacing of the points kept for the plots, µs.
-const TRACE_STEP_US: u64 = 10_000;
+const TRACE_STEP_US: u64 = 20_000;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ScenarioChoice {
@@ -63,6 +63,9 @@ struct Args {
     /// Length of each run, seconds [default: 60, quick: 20].
     #[arg(long)]
     duration: Option<f64>,
+    /// True GPS delay, seconds (constant) [default: 0.2, Table 3's maximum].
+    #[arg(long)]
+    delay: Option<f64>,
     /// Convergence time not scored, seconds.
     #[arg(long, default_value_t = 10.0)]
     skip: f64,
@@ -547,6 +550,7 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
 /// One line of a plot.
 struct Series<'a> {
     name: &'a str,
+    color: &'static str,
     x: &'a [f64],
     y: Vec<f64>,
 }
@@ -557,9 +561,9 @@ struct Panel<'a> {
     series: Vec<Series<'a>>,
 }
 
-const COLORS: [&str; 6] = [
-    "#000000", "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e",
-];
+/// Line colours: the truth, then the estimators in registry order.
+const TRUTH_COLOR: &str = "#000000";
+const COLORS: [&str; 5] = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"];
 
 /// A minimal SVG line plot: stacked panels sharing the time axis.
 fn svg_panels(title: &str, panels: &[Panel]) -> String {
@@ -633,8 +637,20 @@ fn svg_panels(title: &str, panels: &[Panel]) -> String {
             y0 + panel_h + 14.0,
             left + plot_w
         );
+        // A tick every 5 s.
+        let mut tick = (x_min / 5.0).ceil() * 5.0;
+        while tick <= x_max {
+            let _ = writeln!(
+                svg,
+                r##"<line x1="{0}" x2="{0}" y1="{1}" y2="{2}" stroke="#888"/>"##,
+                sx(tick),
+                y0 + panel_h,
+                y0 + panel_h + 5.0
+            );
+            tick += 5.0;
+        }
         for (i, s) in panel.series.iter().enumerate() {
-            let color = COLORS[i % COLORS.len()];
+            let color = s.color;
             let mut d = String::new();
             let mut pen_down = false;
             for (x, y) in s.x.iter().zip(&s.y) {
@@ -676,6 +692,7 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
         title: "pitch (deg): truth and estimates".into(),
         series: vec![Series {
             name: "truth",
+            color: TRUTH_COLOR,
             x: &truth_t,
             y: r.truth_trace.iter().map(|p| p.1).collect(),
         }],
@@ -691,19 +708,23 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
         title: "GPS delay (s): truth and estimates".into(),
         series: vec![Series {
             name: "truth",
+            color: TRUTH_COLOR,
             x: &truth_t,
             y: r.truth_trace.iter().map(|p| p.2).collect(),
         }],
     };
-    for (name, trace) in &r.traces {
+    for (k, (name, trace)) in r.traces.iter().enumerate() {
+        let color = COLORS[k % COLORS.len()];
         pitch.series.push(Series {
             name,
+            color,
             x: &trace.t_s,
             y: trace.pitch_deg.clone(),
         });
         for (axis, panel) in errors.iter_mut().enumerate() {
             panel.series.push(Series {
                 name,
+                color,
                 x: &trace.t_s,
                 y: trace.attitude_err_deg.iter().map(|e| e[axis]).collect(),
             });
@@ -711,6 +732,7 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
         if trace.delay_s.iter().any(|d| d.is_finite()) {
             delay.series.push(Series {
                 name,
+                color,
                 x: &trace.t_s,
                 y: trace.delay_s.clone(),
             });
@@ -728,9 +750,22 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
     Ok(vec![attitude_path, delay_path])
 }
 
+/// The simulation of one scenario and seed with the run's options.
+fn sim_config(scenario: Scenario, seed: u64, duration_s: f64, delay_s: Option<f64>) -> SimConfig {
+    let mut config = SimConfig {
+        duration_s,
+        ..SimConfig::for_scenario(scenario, seed)
+    };
+    if let Some(d) = delay_s {
+        config.delay = DelayProfile::constant(d);
+    }
+    config
+}
+
 fn run_scenario(
     scenario: Scenario,
     seeds: &[u64],
+    delay_s: Option<f64>,
     duration_s: f64,
     skip_s: f64,
     keep_trace: bool,
@@ -744,10 +779,7 @@ fn run_scenario(
     let mut floor_hover = None;
     let mut true_delay_s = 0.0;
     for (k, &seed) in seeds.iter().enumerate() {
-        let config = SimConfig {
-            duration_s,
-            ..SimConfig::for_scenario(scenario, seed)
-        };
+        let config = sim_config(scenario, seed, duration_s, delay_s);
         true_delay_s = config.delay.initial_s;
         floor_hover.get_or_insert_with(|| noise_floor(&config.sensors, STANDARD_GRAVITY));
         let events: Vec<SimEvent> = Simulation::new(config.clone())
@@ -879,10 +911,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     if let Some(dir) = &args.csv {
         for &scenario in &scenarios {
-            let config = SimConfig {
-                duration_s,
-                ..SimConfig::for_scenario(scenario, seeds[0])
-            };
+            let config = sim_config(scenario, seeds[0], duration_s, args.delay);
             let path = dir.join(format!("{}-seed{}", scenario.name(), seeds[0]));
             let n = write_run(&path, Simulation::new(config)?)?;
             eprintln!("wrote {n} events to {}", path.display());
@@ -894,6 +923,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             run_scenario(
                 s,
                 &seeds,
+                args.delay,
                 duration_s,
                 args.skip,
                 plots.is_some(),
