@@ -23,6 +23,10 @@
 //! - `g` in Table 3's units is standard gravity, 9.80665 m/s^2.
 
 use super::trajectory::STANDARD_GRAVITY;
+use crate::ekf16::config::{
+    PAPER_IMU_RATE_HZ, TABLE3_ACCEL_VARIANCE_G2, TABLE3_GPS_POSITION_VARIANCE,
+    TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE, TABLE3_MAG_VARIANCE,
+};
 use crate::sensors::Geodetic;
 
 /// Allowed IMU rates, Hz.
@@ -100,18 +104,18 @@ fn deg_min(deg: f64, min: f64) -> f64 {
 impl Default for SensorConfig {
     fn default() -> Self {
         Self {
-            imu_rate_hz: 1000.0,
+            imu_rate_hz: PAPER_IMU_RATE_HZ,
             gps_rate_hz: 10.0,
             mag_rate_hz: 100.0,
-            gyro_noise_var_rad2_s2: 0.0017,
-            accel_noise_var_g2: 0.01,
-            mag_noise_var: 0.02,
+            gyro_noise_var_rad2_s2: TABLE3_GYRO_VARIANCE,
+            accel_noise_var_g2: TABLE3_ACCEL_VARIANCE_G2,
+            mag_noise_var: TABLE3_MAG_VARIANCE,
             gyro_bias_max_rad_s: 0.01,
             accel_bias_max_g: 0.1,
             gyro_bias_walk_rad_s_sqrt_s: 0.0,
             accel_bias_walk_m_s2_sqrt_s: 0.0,
-            gps_position_var_m2: 4.0,
-            gps_velocity_var_m2_s2: 0.1,
+            gps_position_var_m2: TABLE3_GPS_POSITION_VARIANCE,
+            gps_velocity_var_m2_s2: TABLE3_GPS_VELOCITY_VARIANCE,
             gps_position_output: GpsPositionOutput::Ned,
             origin: Geodetic {
                 lat_deg: 31.2304,

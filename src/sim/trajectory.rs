@@ -67,8 +67,8 @@ use libm::{cos, exp, log, sin};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Standard gravity, m/s^2: the unit `g` of the paper's Table 3 and the
-/// gravity of the simulated world (NED down positive).
-pub const STANDARD_GRAVITY: f64 = 9.806_65;
+/// gravity of the simulated world (NED down positive); the one the EKF uses.
+pub use crate::ekf16::config::STANDARD_GRAVITY;
 
 /// Step of the central difference that gives the angular rate, seconds.
 const RATE_DIFFERENCE_STEP_S: f64 = 1e-3;
