@@ -1066,3 +1066,47 @@ fn added_gps_delay_experiment() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------
+// The simulator writes the crate's format; the reader gives its samples back.
+
+#[cfg(feature = "sim")]
+#[test]
+fn simulated_run_round_trips_through_the_crate_format() {
+    use delaynav::sim::{Scenario, SimConfig, SimEvent, Simulation};
+    let config = SimConfig {
+        duration_s: 2.0,
+        ..SimConfig::for_scenario(Scenario::High, 7)
+    };
+    let events: Vec<SimEvent> = Simulation::new(config.clone()).unwrap().collect();
+    let dir = temp_dir("sim");
+    delaynav::sim::csv::write_run(&dir, Simulation::new(config).unwrap()).unwrap();
+
+    let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
+    assert_eq!(files.format, LogFormat::Crate);
+    assert_eq!(files.reference, Some(dir.join("truth.csv")));
+    let mut reader = LogReader::<f64>::open(&files, &ReaderOptions::default()).unwrap();
+    let read: Vec<_> = reader.by_ref().collect();
+    assert_eq!(reader.skip_counts().total(), 0, "{}", reader.skip_counts());
+    assert_eq!(read.len(), events.len());
+    let mut truths = Vec::new();
+    for (got, written) in read.iter().zip(&events) {
+        match (got, written) {
+            (SensorEvent::Imu(a), SimEvent::Imu { sample, truth }) => {
+                assert_eq!(a, sample);
+                truths.push(truth.clone());
+            }
+            (SensorEvent::Mag(a), SimEvent::Mag(b)) => assert_eq!(a, b),
+            (SensorEvent::Gps(a), SimEvent::Gps { fix, .. }) => assert_eq!(a, fix),
+            other => panic!("stream order differs: {other:?}"),
+        }
+    }
+    let reference: Vec<_> = ReferenceReader::open(&files).unwrap().unwrap().collect();
+    assert_eq!(reference.len(), truths.len());
+    for (r, t) in reference.iter().zip(&truths) {
+        assert_eq!(r.t_us, t.t_us);
+        assert!(r.attitude.angle_to(&t.attitude) < 1e-12);
+        assert_eq!(r.velocity_ned_m_s, Some(t.velocity_m_s));
+        assert_eq!(r.position_ned_m, Some(t.position_m));
+    }
+}
