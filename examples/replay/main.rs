@@ -33,7 +33,7 @@ type Failure = Box<dyn Error>;
 #[derive(Parser, Debug)]
 #[command(name = "replay")]
 struct Args {
-    /// Log directory or files. None: replay a simulated run.
+    /// Log directory or files. None: replay a simulated run (needs the `sim` feature).
     inputs: Vec<PathBuf>,
     /// Log layout: auto, csv (the crate's), ardupilot, px4.
     #[arg(long, default_value = "auto")]
@@ -296,6 +296,41 @@ fn summary_json(name: &str, s: &RunSummary, skips: &SkipCounts) -> Value {
     })
 }
 
+/// With no log given: writes a simulated run (the paper's low-acceleration
+/// scenario, 60 s) in the crate's format to a temporary directory and points
+/// the arguments at it, with the simulator's magnetic field and scoring from 10 s.
+#[cfg(feature = "sim")]
+fn simulated_log(args: &mut Args) -> Result<(), Failure> {
+    use delaynav::sim::{Scenario, SimConfig, Simulation};
+    let simulation = Simulation::new(SimConfig::for_scenario(Scenario::Low, 1))?;
+    let field = simulation.field_ned();
+    let dir = std::env::temp_dir().join(format!("delaynav-replay-sim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let written = delaynav::sim::csv::write_run(&dir, simulation)?;
+    eprintln!(
+        "no log given: replaying a simulated run ({written} samples) written to {}",
+        dir.display()
+    );
+    args.inputs = vec![dir];
+    args.declination_deg
+        .get_or_insert(field.y.atan2(field.x).to_degrees());
+    args.inclination_deg
+        .get_or_insert(field.z.atan2(field.x.hypot(field.y)).to_degrees());
+    if args.from.is_none() {
+        args.from = Some(10.0);
+        args.warmup = 10.0;
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "sim"))]
+fn simulated_log(_: &mut Args) -> Result<(), Failure> {
+    Err("no log given, and this build has no simulator to replay instead (feature `sim`).\n\
+         Pass a log directory or files, e.g.\n  \
+         cargo run --release --features replay --example replay -- ../shared/data/ardupilot-log171 --from 75 --to 225"
+        .into())
+}
+
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
 }
@@ -307,14 +342,9 @@ fn main() {
     }
 }
 
-fn run(args: Args) -> Result<(), Failure> {
+fn run(mut args: Args) -> Result<(), Failure> {
     if args.inputs.is_empty() {
-        eprintln!(
-            "replay: no log given, and this build has no simulator to replay instead.\n\
-             Pass a log directory or files, e.g.\n  \
-             cargo run --release --features replay --example replay -- ../shared/data/ardupilot-log171 --from 75 --to 225"
-        );
-        std::process::exit(2);
+        simulated_log(&mut args)?;
     }
     let estimators = chosen(&args.estimator)?;
     let setup = setup(&args)?;
