@@ -1094,7 +1094,7 @@ fn simulated_run_round_trips_through_the_crate_format() {
         match (got, written) {
             (SensorEvent::Imu(a), SimEvent::Imu { sample, truth }) => {
                 assert_eq!(a, sample);
-                truths.push(truth.clone());
+                truths.push(*truth);
             }
             (SensorEvent::Mag(a), SimEvent::Mag(b)) => assert_eq!(a, b),
             (SensorEvent::Gps(a), SimEvent::Gps { fix, .. }) => assert_eq!(a, fix),
