@@ -91,14 +91,7 @@ struct Registered {
 const ESTIMATORS: &[Registered] = &[Registered {
     name: "ekf16",
     about: "16-state EKF, GPS fused as if current (no delay handling)",
-    run: |setup, out| {
-        let config = Ekf16Config {
-            mag_inclination_rad: setup.inclination_rad,
-            mag_declination_rad: setup.declination_rad,
-            ..Ekf16Config::default()
-        };
-        run_one(setup, out, "ekf16", &mut Ekf16::new(config)?)
-    },
+    run: |setup, out| run_one(setup, out, "ekf16", &mut Ekf16::new(setup.ekf16_config())?),
 }];
 
 /// The names `--estimator` understands, including those not built yet.
@@ -111,6 +104,35 @@ struct Setup {
     run: RunOptions,
     declination_rad: f64,
     inclination_rad: f64,
+    /// Median IMU rate over the log's first 10 s, Hz.
+    imu_rate_hz: f64,
+}
+
+impl Setup {
+    /// The navigation filter's configuration for this log: defaults with
+    /// the log's magnetic field. Every estimator builds on it.
+    fn ekf16_config(&self) -> Ekf16Config<f64> {
+        Ekf16Config {
+            mag_inclination_rad: self.inclination_rad,
+            mag_declination_rad: self.declination_rad,
+            ..Ekf16Config::default()
+        }
+    }
+}
+
+/// Median IMU rate, Hz, over the first `window_us` of a log.
+fn imu_rate_hz(events: LogReader<f64>, window_us: u64) -> Option<f64> {
+    let times: Vec<u64> = events
+        .filter(|e| matches!(e, delaynav::replay::SensorEvent::Imu(_)))
+        .map(|e| e.time_us())
+        .take_while({
+            let mut first = None;
+            move |&t| t <= *first.get_or_insert(t) + window_us
+        })
+        .collect();
+    let mut steps: Vec<u64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_unstable();
+    steps.get(steps.len() / 2).map(|&dt| 1e6 / dt as f64)
 }
 
 /// Per-sample outputs shared across estimators.
@@ -214,6 +236,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
             inclination_at_rest(LogReader::<f64>::open(&files, &reader)?, 10_000_000).unwrap_or(0.0)
         }
     };
+    let imu_rate_hz = imu_rate_hz(LogReader::open(&files, &reader)?, 10_000_000).unwrap_or(1000.0);
     let score_from_us = args.from.map(seconds_to_us);
     let run = RunOptions {
         start_us: args.from.map(|f| seconds_to_us(f - args.warmup)),
@@ -229,6 +252,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         run,
         declination_rad: alignment.declination_rad,
         inclination_rad,
+        imu_rate_hz,
     })
 }
 
@@ -362,13 +386,14 @@ fn run(mut args: Args) -> Result<(), Failure> {
     scan.by_ref().for_each(drop);
     let skips = scan.skip_counts().clone();
     eprintln!(
-        "log: {} ({}), declination {:.2} deg, inclination {:.2} deg, trim roll {:.4} rad pitch {:.4} rad",
+        "log: {} ({}), IMU {:.0} Hz, declination {:.2} deg, inclination {:.2} deg, trim roll {:.4} rad pitch {:.4} rad",
         setup
             .files
             .imu
             .parent()
             .map_or_else(String::new, |p| p.display().to_string()),
         setup.files.format,
+        setup.imu_rate_hz,
         setup.declination_rad.to_degrees(),
         setup.inclination_rad.to_degrees(),
         setup.run.alignment.trim_roll_rad,
@@ -411,6 +436,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
             "to_s": setup.run.end_us.map(|t| t as f64 * 1e-6),
             "declination_deg": setup.declination_rad.to_degrees(),
             "inclination_deg": setup.inclination_rad.to_degrees(),
+            "imu_rate_hz": setup.imu_rate_hz,
             "trim_roll_rad": setup.run.alignment.trim_roll_rad,
             "trim_pitch_rad": setup.run.alignment.trim_pitch_rad,
             "estimators": summaries.iter().map(|(r, s)| {
