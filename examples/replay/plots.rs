@@ -9,6 +9,13 @@ type Failure = Box<dyn Error>;
 
 const COLORS: [RGBColor; 5] = [RED, BLUE, GREEN, MAGENTA, CYAN];
 
+/// One line of a chart.
+struct Line<'a> {
+    label: &'a str,
+    color: RGBColor,
+    points: Vec<(f64, f64)>,
+}
+
 fn range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
@@ -20,20 +27,16 @@ fn range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     Some((lo - pad, hi + pad))
 }
 
-/// `delay.svg`: each estimator's delay estimate (s) over log time (s).
-pub fn delay(path: &Path, tracks: &[(&str, &[(f64, f64)])]) -> Result<(), Failure> {
-    let points = || tracks.iter().flat_map(|(_, t)| t.iter());
+/// Draws `lines` over log time into `path`; `false` when there is nothing to draw.
+fn line_chart(path: &Path, title: &str, y_desc: &str, lines: &[Line]) -> Result<bool, Failure> {
+    let points = || lines.iter().flat_map(|l| l.points.iter());
     let (Some(x), Some(y)) = (range(points().map(|p| p.0)), range(points().map(|p| p.1))) else {
-        eprintln!(
-            "no estimator has a delay estimate: {} not written",
-            path.display()
-        );
-        return Ok(());
+        return Ok(false);
     };
     let root = SVGBackend::new(path, (900, 400)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption("GPS delay estimate", ("sans-serif", 20))
+        .caption(title, ("sans-serif", 20))
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(55)
@@ -41,17 +44,13 @@ pub fn delay(path: &Path, tracks: &[(&str, &[(f64, f64)])]) -> Result<(), Failur
     chart
         .configure_mesh()
         .x_desc("log time (s)")
-        .y_desc("delay (s)")
+        .y_desc(y_desc)
         .draw()?;
-    for (k, (name, track)) in tracks
-        .iter()
-        .enumerate()
-        .filter(|(_, (_, t))| !t.is_empty())
-    {
-        let color = COLORS[k % COLORS.len()];
+    for line in lines {
+        let color = line.color;
         chart
-            .draw_series(LineSeries::new(track.iter().copied(), &color))?
-            .label(*name)
+            .draw_series(LineSeries::new(line.points.iter().copied(), &color))?
+            .label(line.label)
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color));
     }
     chart
@@ -60,6 +59,26 @@ pub fn delay(path: &Path, tracks: &[(&str, &[(f64, f64)])]) -> Result<(), Failur
         .border_style(BLACK)
         .draw()?;
     root.present()?;
+    Ok(true)
+}
+
+/// `delay.svg`: each estimator's delay estimate (s) over log time (s).
+pub fn delay(path: &Path, tracks: &[(&str, &[(f64, f64)])]) -> Result<(), Failure> {
+    let lines: Vec<Line> = tracks
+        .iter()
+        .enumerate()
+        .map(|(k, (label, track))| Line {
+            label,
+            color: COLORS[k % COLORS.len()],
+            points: track.to_vec(),
+        })
+        .collect();
+    if !line_chart(path, "GPS delay estimate", "delay (s)", &lines)? {
+        eprintln!(
+            "no estimator has a delay estimate: {} not written",
+            path.display()
+        );
+    }
     Ok(())
 }
 
@@ -71,54 +90,30 @@ pub fn attitude(
     reference: Option<&[[f64; 4]]>,
 ) -> Result<(), Failure> {
     for (axis, name) in [(1, "roll"), (2, "pitch"), (3, "yaw")] {
-        let mut series: Vec<(&str, &[[f64; 4]])> = traces
+        let along = |trace: &[[f64; 4]]| trace.iter().map(|p| (p[0], p[axis])).collect();
+        let mut lines: Vec<Line> = traces
             .iter()
-            .map(|(n, t)| (n.as_str(), t.as_slice()))
+            .enumerate()
+            .map(|(k, (label, trace))| Line {
+                label,
+                color: COLORS[k % COLORS.len()],
+                points: along(trace),
+            })
             .collect();
         if let Some(r) = reference {
-            series.push(("reference", r));
+            lines.push(Line {
+                label: "reference",
+                color: BLACK,
+                points: along(r),
+            });
         }
-        let points = || series.iter().flat_map(|(_, t)| t.iter());
-        let (Some(x), Some(y)) = (
-            range(points().map(|p| p[0])),
-            range(points().map(|p| p[axis])),
-        ) else {
-            continue;
-        };
         let path = dir.join(format!("{name}.svg"));
-        let root = SVGBackend::new(&path, (900, 400)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("{name} (deg)"), ("sans-serif", 20))
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(55)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
-        chart
-            .configure_mesh()
-            .x_desc("log time (s)")
-            .y_desc(format!("{name} (deg)"))
-            .draw()?;
-        for (k, (label, trace)) in series.iter().enumerate() {
-            let color = if *label == "reference" {
-                BLACK
-            } else {
-                COLORS[k % COLORS.len()]
-            };
-            chart
-                .draw_series(LineSeries::new(
-                    trace.iter().map(|p| (p[0], p[axis])),
-                    &color,
-                ))?
-                .label(*label)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()?;
-        root.present()?;
+        line_chart(
+            &path,
+            &format!("{name} (deg)"),
+            &format!("{name} (deg)"),
+            &lines,
+        )?;
     }
     Ok(())
 }
