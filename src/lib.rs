@@ -22,6 +22,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod aekf17;
 pub mod ekf16;
 pub mod error;
 pub mod estimate;
@@ -30,6 +31,7 @@ pub mod kalman;
 pub mod scalar;
 pub mod sensors;
 
+pub use aekf17::{Aekf17Config, AugmentedEkf17};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};

@@ -35,6 +35,11 @@
 //! - [`NavCore::push_mag`]: the heading-only magnetometer update of
 //!   [`measurement`](super::measurement) (or keeps the sample for
 //!   initialization).
+//! - [`NavCore::reset_extra_state`] and [`NavCore::clamp_extra_state`]: the
+//!   two ways a filter may change an extra state from outside the Kalman
+//!   algebra. A reset sets the value and variance and drops the state's
+//!   correlations (`P` stays symmetric PSD: a block-diagonal of PSD blocks);
+//!   a clamp moves the value into a range and leaves `P` untouched.
 //! - Every refused sample leaves `x`, `P` and the clocks as they were (except
 //!   [`Error::StepTooLong`], see its docs) and increments a
 //!   [`RefusalCounters`] field.
@@ -310,6 +315,53 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// The last magnetometer fusion record.
     pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
         self.last_mag
+    }
+
+    /// Value and variance of extra state `index` (`16..N`): the initial
+    /// ones before initialization.
+    pub(crate) fn extra_state(&self, index: usize) -> (T, T) {
+        debug_assert!((NAV_STATES..N).contains(&index));
+        if self.initialized {
+            (self.x[index], self.p[(index, index)])
+        } else {
+            (self.extra_initial[index], self.extra_variance[index])
+        }
+    }
+
+    /// Sets extra state `index` (`16..N`) to `value` with variance
+    /// `variance` and no correlation with the other states. Before
+    /// initialization this replaces the state's initial value and variance.
+    /// The caller checks that both are finite and the variance not negative.
+    pub(crate) fn reset_extra_state(&mut self, index: usize, value: T, variance: T) {
+        debug_assert!((NAV_STATES..N).contains(&index));
+        if !self.initialized {
+            self.extra_initial[index] = value;
+            self.extra_variance[index] = variance;
+            return;
+        }
+        self.x[index] = value;
+        self.p.row_mut(index).fill(T::zero());
+        self.p.column_mut(index).fill(T::zero());
+        self.p[(index, index)] = variance;
+    }
+
+    /// Moves the value of extra state `index` (`16..N`) into `[lo, hi]`,
+    /// leaving `P` as it is; true when it moved. No-op before initialization.
+    pub(crate) fn clamp_extra_state(&mut self, index: usize, lo: T, hi: T) -> bool {
+        debug_assert!((NAV_STATES..N).contains(&index) && lo <= hi);
+        let v = self.x[index];
+        let clamped = if v < lo {
+            lo
+        } else if v > hi {
+            hi
+        } else {
+            v
+        };
+        if !self.initialized || clamped == v {
+            return false;
+        }
+        self.x[index] = clamped;
+        true
     }
 
     /// Pads a Jacobian over the 16 navigation states with zero columns for the extra states.

@@ -1,0 +1,352 @@
+//! The augmented 17-state EKF of the paper's section 2.2.1: the baseline the
+//! delay-compensated navigator is compared against. The GPS delay `tau` is
+//! a 17th state and the delayed fix is predicted by a second-order Taylor
+//! expansion of the current state (eq. 11).
+//!
+//! | part | where | paper |
+//! |---|---|---|
+//! | state `x^d = [q r v b_f b_w tau]` | [`measurement::DELAY`] | eq. (12) |
+//! | process model, `F`, `A`, `Q` (shared with [`Ekf16`](crate::Ekf16)) | [`ekf16::process`](crate::ekf16::process) | eqs. (2)-(5) |
+//! | delayed GPS model and its `H` (9x17 with the magnetometer rows) | [`measurement`] | eq. (11) |
+//! | magnetometer update, gating, Joseph update (shared) | [`ekf16::measurement`](crate::ekf16::measurement), [`kalman`](crate::kalman) | eqs. (6)-(10) |
+//! | configuration | [`config`] | |
+//!
+//! # One filter, two state sizes
+//! [`Ekf16`](crate::Ekf16) and this filter run the same core: the
+//! propagation, the covariance prediction, the magnetometer update, the
+//! gating, the Joseph update, the initialization and the refusal of bad
+//! input are one code path generic over the state size. This module adds
+//! only what the augmentation changes: the delay state and the GPS model.
+//!
+//! # Delay state
+//! - Process: `tau' = 0` plus white noise of density `delay_random_walk`
+//!   (s/√s): over a step `dt` its variance grows by `delay_random_walk² dt`.
+//!   `tau` is uncorrelated with the navigation states until a GPS fix links
+//!   them through `∂h/∂tau`.
+//! - Initial value and standard deviation: `initial_delay_s`,
+//!   `initial_delay_std_s`; [`AugmentedEkf17::set_delay`] replaces them
+//!   (before or after initialization), e.g. with the result of an offline
+//!   calibration.
+//!
+//! # GPS fix
+//! A fix received at `t` is fused at the filter's time (the last IMU
+//! sample) with the model of [`measurement`]: position block
+//! `r - v tau + a tau²/2` then velocity block `v - a tau` (each with its
+//! lever-arm terms), where `a = R(q)(f~ - b_f) + [0 0 g]` uses the last IMU
+//! sample's specific force. Each block is gated on its NIS and recorded as
+//! in [`Ekf16`](crate::Ekf16); the velocity block is linearized after the
+//! position update.
+//!
+//! # Keeping `tau` in `[0, max_delay_s]`
+//! After each fusion, a `tau` outside the range is clamped to its nearer
+//! end; the covariance is left as it is. Why this choice:
+//! - it is the projection of the estimate on the admissible set, the
+//!   maximum a posteriori estimate under a box constraint when the other
+//!   states are held;
+//! - `P` is not touched, so it keeps its symmetry and positive
+//!   semi-definiteness exactly (no ad hoc reduction to get wrong);
+//! - truncating a Gaussian to a half-line shrinks its variance, so keeping
+//!   the untruncated `P` overstates the uncertainty of `tau`: the filter
+//!   stays conservative, never overconfident.
+//!
+//! The alternative, projecting the whole state (`x -= P D^T (D P D^T)^-1 (D x - d)`
+//! with `D` selecting `tau`), would also move the states correlated with
+//! `tau`; with the clamp acting only after bad linearization (a delay
+//! estimate drifting out of range is a symptom, not a measurement) moving
+//! the navigation states on its account is not warranted. Clamps are
+//! counted ([`AugmentedEkf17::delay_clamps`]).
+//!
+//! # Observability
+//! `tau` is seen through `v` (position block) and `a` (velocity block).
+//! With no velocity and no horizontal acceleration the fix says nothing
+//! about `tau` beyond the vertical `g` that the accelerometer cancels;
+//! its variance then grows with the random walk instead of collapsing
+//! (tested).
+//!
+//! # Bad input
+//! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
+//! leave the filter unchanged and are counted in [`RefusalCounters`].
+
+pub mod config;
+pub mod measurement;
+
+pub use config::Aekf17Config;
+
+use crate::ekf16::nav_core::{ExtraState, GpsStep, NavCore};
+use crate::ekf16::state::{NAV_STATES, StateVector, quaternion_of};
+use crate::ekf16::{NavState, RefusalCounters};
+use crate::error::Error;
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
+use crate::geo::{LocalFrame, rotation_matrix};
+use crate::scalar::Scalar;
+use crate::sensors::{GpsFix, ImuSample, MagSample};
+use measurement::{AUGMENTED_STATES, AugmentedCovariance, AugmentedStateVector, DELAY};
+use nalgebra::Vector3;
+
+/// The augmented 17-state EKF (paper section 2.2.1): the 16-state filter
+/// plus the GPS delay `tau` as a state.
+///
+/// ```
+/// use delaynav::{Aekf17Config, AugmentedEkf17, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
+/// use nalgebra::Vector3;
+///
+/// let config = Aekf17Config::<f64> { initial_delay_s: 0.2, ..Aekf17Config::default() };
+/// let mut aekf = AugmentedEkf17::new(config)?;
+/// for k in 0..100u64 {
+///     let imu = Imu { t_us: k * 10_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.80665) };
+///     aekf.push_imu(&imu)?;
+/// }
+/// let fix = Gps {
+///     t_us: 990_500,
+///     position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+///     velocity_ned_m_s: Vector3::zeros(),
+///     horizontal_accuracy_m: None,
+///     vertical_accuracy_m: None,
+///     speed_accuracy_m_s: None,
+/// };
+/// assert_eq!(aekf.push_gps(&fix)?, GpsOutcome::Initialized);
+/// let e = aekf.estimate().unwrap();
+/// assert_eq!(e.delay_s, Some(0.2));
+/// assert!((e.delay_std_s.unwrap() - 0.1).abs() < 1e-12);
+/// # Ok::<(), delaynav::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct AugmentedEkf17<T: Scalar> {
+    core: NavCore<T, AUGMENTED_STATES>,
+    config: Aekf17Config<T>,
+    delay_clamps: u32,
+}
+
+/// The delay state as the shared core describes an extra state.
+fn delay_extra_state<T: Scalar>(c: &Aekf17Config<T>) -> ExtraState<T> {
+    ExtraState {
+        initial: c.initial_delay_s,
+        initial_variance: c.initial_delay_std_s * c.initial_delay_std_s,
+        random_walk_intensity: c.delay_random_walk * c.delay_random_walk,
+    }
+}
+
+impl<T: Scalar> AugmentedEkf17<T> {
+    /// An uninitialized filter; it initializes itself from the first GPS
+    /// fix as [`Ekf16`](crate::Ekf16) does, with `tau` at its configured
+    /// initial value. Fails when the configuration does not validate.
+    pub fn new(config: Aekf17Config<T>) -> Result<Self, Error> {
+        config.validate()?;
+        Ok(Self {
+            core: NavCore::new(config.nav, &[delay_extra_state(&config)])?,
+            config,
+            delay_clamps: 0,
+        })
+    }
+
+    /// A filter initialized at time `t_us` (microseconds, IMU clock) with a
+    /// known navigation state and diagonal covariance (16 states, as
+    /// [`Ekf16::from_state`](crate::Ekf16::from_state)); `tau` starts at its
+    /// configured initial value and variance.
+    pub fn from_state(
+        config: Aekf17Config<T>,
+        t_us: u64,
+        state: &NavState<T>,
+        covariance_diagonal: &StateVector<T>,
+    ) -> Result<Self, Error> {
+        config.validate()?;
+        let extra = delay_extra_state(&config);
+        let mut x = AugmentedStateVector::zeros();
+        x.fixed_rows_mut::<NAV_STATES>(0)
+            .copy_from(&state.to_vector());
+        x[DELAY] = extra.initial;
+        let mut d = AugmentedStateVector::zeros();
+        d.fixed_rows_mut::<NAV_STATES>(0)
+            .copy_from(covariance_diagonal);
+        d[DELAY] = extra.initial_variance;
+        Ok(Self {
+            core: NavCore::from_state(
+                config.nav,
+                &[extra],
+                t_us,
+                &x,
+                &AugmentedCovariance::from_diagonal(&d),
+            )?,
+            config,
+            delay_clamps: 0,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Aekf17Config<T> {
+        &self.config
+    }
+
+    /// True once initialized (from a GPS fix or a given state).
+    pub fn is_initialized(&self) -> bool {
+        self.core.is_initialized()
+    }
+
+    /// Time of the state (last accepted IMU sample), microseconds.
+    pub fn time_us(&self) -> Option<u64> {
+        self.core.time_us()
+    }
+
+    /// The 17-state vector `[x; tau]` (meaningful once initialized).
+    pub fn state_vector(&self) -> &AugmentedStateVector<T> {
+        self.core.state()
+    }
+
+    /// The named navigation state, `None` until initialized.
+    pub fn nav_state(&self) -> Option<NavState<T>> {
+        self.is_initialized()
+            .then(|| NavState::from_vector(&self.core.nav_state()))
+    }
+
+    /// The covariance (17x17).
+    pub fn covariance(&self) -> &AugmentedCovariance<T> {
+        self.core.covariance()
+    }
+
+    /// The delay estimate `tau`, seconds (the initial one until initialized).
+    pub fn delay_s(&self) -> T {
+        self.core.extra_state(DELAY).0
+    }
+
+    /// The standard deviation of `tau`, seconds.
+    pub fn delay_std_s(&self) -> T {
+        self.core.extra_state(DELAY).1.sqrt()
+    }
+
+    /// Sets `tau` to `delay_s` with standard deviation `std_s` (seconds),
+    /// uncorrelated with the navigation states, e.g. from the offline
+    /// calibration. Before initialization this replaces the configured
+    /// initial values. Refused (nothing changes) unless `delay_s` lies in
+    /// `[0, max_delay_s]` and `std_s` is finite and positive.
+    pub fn set_delay(&mut self, delay_s: T, std_s: T) -> Result<(), Error> {
+        if !(delay_s.is_finite() && delay_s >= T::zero() && delay_s <= self.config.max_delay_s) {
+            return Err(Error::OutOfRange {
+                field: "delay_s",
+                reason: "must lie in [0, max_delay_s]",
+            });
+        }
+        if !(std_s.is_finite() && std_s > T::zero()) {
+            return Err(Error::OutOfRange {
+                field: "delay_std_s",
+                reason: "must be finite and positive",
+            });
+        }
+        self.core.reset_extra_state(DELAY, delay_s, std_s * std_s);
+        Ok(())
+    }
+
+    /// How many times `tau` left `[0, max_delay_s]` after a fusion and was
+    /// clamped back (see the module docs).
+    pub fn delay_clamps(&self) -> u32 {
+        self.delay_clamps
+    }
+
+    /// The local NED frame of geodetic GPS fixes, once known.
+    pub fn frame(&self) -> Option<&LocalFrame> {
+        self.core.frame()
+    }
+
+    /// Records of the last GPS fusion: (position, velocity).
+    pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+        self.core.last_gps_fusion()
+    }
+
+    /// Record of the last magnetometer fusion.
+    pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+        self.core.last_mag_fusion()
+    }
+
+    /// Counters of refused and gated-out samples.
+    pub fn refusals(&self) -> RefusalCounters {
+        self.core.refusals()
+    }
+
+    /// The rate and specific force of the last IMU sample; without one
+    /// (a filter started from a state) a zero rate and the specific force
+    /// of rest, for which `a = 0`.
+    fn current_imu(&self) -> (Vector3<T>, Vector3<T>) {
+        if let Some(s) = self.core.last_imu() {
+            return (s.gyro_rad_s, s.accel_m_s2);
+        }
+        let x = self.core.state();
+        let rot = rotation_matrix(&quaternion_of(x));
+        let g = Vector3::new(T::zero(), T::zero(), self.config.nav.gravity_m_s2);
+        let rest = x.fixed_rows::<3>(crate::ekf16::state::ACCEL_BIAS) - rot.transpose() * g;
+        (Vector3::zeros(), rest)
+    }
+
+    /// Moves `tau` back into `[0, max_delay_s]` if a fusion took it out.
+    fn keep_delay_in_range(&mut self) {
+        if self
+            .core
+            .clamp_extra_state(DELAY, T::zero(), self.config.max_delay_s)
+        {
+            self.delay_clamps = self.delay_clamps.saturating_add(1);
+        }
+    }
+}
+
+impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
+    fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        self.core.push_imu(imu)
+    }
+
+    /// Fuses the delayed position then the delayed velocity (eq. 11, see
+    /// [`measurement`]), each block gated on its own, `tau` kept in range
+    /// after each.
+    fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let m = match self.core.begin_gps(gps)? {
+            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
+            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
+            GpsStep::Measure(m) => m,
+        };
+        let c = self.config.nav;
+        let (gyro, accel) = self.current_imu();
+        let (h, jac) = measurement::delayed_gps_position(
+            self.core.state(),
+            &accel,
+            &c.lever_arm_m,
+            c.gravity_m_s2,
+        );
+        let position = self.core.fuse(
+            m.t_us,
+            &(m.position_ned_m - h),
+            &jac,
+            &m.position_noise,
+            c.gps_position_gate,
+            "gps.position",
+        )?;
+        self.keep_delay_in_range();
+        let (h, jac) = measurement::delayed_gps_velocity(
+            self.core.state(),
+            &gyro,
+            &accel,
+            &c.lever_arm_m,
+            c.gravity_m_s2,
+        );
+        let velocity = self.core.fuse(
+            m.t_us,
+            &(m.velocity_ned_m_s - h),
+            &jac,
+            &m.velocity_noise,
+            c.gps_velocity_gate,
+            "gps.velocity",
+        )?;
+        self.keep_delay_in_range();
+        self.core.record_gps(position, velocity);
+        Ok(GpsOutcome::Fused { position, velocity })
+    }
+
+    fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
+        self.core.push_mag(mag)
+    }
+
+    /// The core's estimate with the delay and its standard deviation.
+    fn estimate(&self) -> Option<Estimate<T>> {
+        self.core.estimate().map(|e| Estimate {
+            delay_s: Some(self.delay_s()),
+            delay_std_s: Some(self.delay_std_s()),
+            ..e
+        })
+    }
+}
