@@ -8,10 +8,13 @@
 //! | `initial_delay_std_s` | s | its standard deviation at initialization |
 //! | `delay_random_walk` | s/√s | density of the random walk of `tau` (variance grows by its square per second) |
 //! | `max_delay_s` | s | upper end of the admissible range `[0, max_delay_s]` |
+//! | `accel_smoothing_s` | s | time constant of the low-pass on the acceleration `a` of the GPS model (0: the raw last sample) |
 //!
 //! The defaults start at 0.1 s with a 0.1 s standard deviation (receivers
 //! of this class lag 0.1-0.4 s), let `tau` wander by 1 ms/√s (10 ms in
-//! 100 s without information) and bound it to one second.
+//! 100 s without information), bound it to one second and smooth the
+//! acceleration over 50 ms (see the module docs of
+//! [`aekf17`](super) for why the raw sample biases `tau` toward zero).
 
 use crate::ekf16::Ekf16Config;
 use crate::error::Error;
@@ -31,6 +34,10 @@ pub struct Aekf17Config<T: Scalar> {
     pub delay_random_walk: T,
     /// Largest admissible delay, seconds; `tau` is kept in `[0, max_delay_s]`.
     pub max_delay_s: T,
+    /// Time constant of the first-order low-pass applied to the
+    /// navigation-frame acceleration `a` used by the delayed GPS model,
+    /// seconds; 0 uses the last IMU sample as the paper does.
+    pub accel_smoothing_s: T,
 }
 
 impl<T: Scalar> Default for Aekf17Config<T> {
@@ -41,6 +48,7 @@ impl<T: Scalar> Default for Aekf17Config<T> {
             initial_delay_std_s: T::lit(0.1),
             delay_random_walk: T::lit(1e-3),
             max_delay_s: T::lit(1.0),
+            accel_smoothing_s: T::lit(0.05),
         }
     }
 }
@@ -83,6 +91,12 @@ impl<T: Scalar> Aekf17Config<T> {
         if !(self.delay_random_walk.is_finite() && self.delay_random_walk >= T::zero()) {
             return Err(Error::InvalidConfig {
                 field: "delay_random_walk",
+                reason: "must be finite and not negative",
+            });
+        }
+        if !(self.accel_smoothing_s.is_finite() && self.accel_smoothing_s >= T::zero()) {
+            return Err(Error::InvalidConfig {
+                field: "accel_smoothing_s",
                 reason: "must be finite and not negative",
             });
         }

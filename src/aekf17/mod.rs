@@ -32,10 +32,35 @@
 //! A fix received at `t` is fused at the filter's time (the last IMU
 //! sample) with the model of [`measurement`]: position block
 //! `r - v tau + a tau²/2` then velocity block `v - a tau` (each with its
-//! lever-arm terms), where `a = R(q)(f~ - b_f) + [0 0 g]` uses the last IMU
-//! sample's specific force. Each block is gated on its NIS and recorded as
-//! in [`Ekf16`](crate::Ekf16); the velocity block is linearized after the
-//! position update.
+//! lever-arm terms), where `a = R(q)(f - b_f) + [0 0 g]`. Each block is
+//! gated on its NIS and recorded as in [`Ekf16`](crate::Ekf16); the
+//! velocity block is linearized after the position update.
+//!
+//! # The acceleration `a`: smoothed, and its noise counted
+//! The paper takes `f` from the current IMU sample. A single sample
+//! carries the accelerometer's white noise `n_a` (about 1 m/s² per sample at
+//! 1 kHz for the paper's Table 3), and the model treats it as exact: the
+//! velocity innovation then holds `+n_a tau` while `∂h/∂tau = -(a + n_a)`,
+//! so the filter regresses the innovation on a noisy regressor and its
+//! `tau` is pulled toward zero by the factor `|a|² / (|a|² + σ_a²)`
+//! (errors in variables); at rest it is pulled to zero outright while its
+//! variance shrinks, which is dishonest. Two measures:
+//! - `a` is a first-order low-pass (time constant `accel_smoothing_s`) of
+//!   the navigation-frame acceleration `R(q_k)(f~_k - b_f) + [0 0 g]` of
+//!   each IMU sample. Filtering in the navigation frame keeps the low-pass
+//!   from mixing gravity into the horizontal while the body turns. The GPS
+//!   model uses it through the body-frame specific force
+//!   `f = R(q)^T (a_s - [0 0 g]) + b_f` at the current state, so `h`
+//!   evaluates to `a_s` and `H` keeps its terms through `q` and `b_f`.
+//!   The low-pass lags by its time constant, an error `j T tau` (jerk `j`)
+//!   smaller than the Taylor expansion's own `j tau² / 2` when `T < tau / 2`.
+//!   `accel_smoothing_s = 0` is the paper's raw sample.
+//! - The remaining noise of `a` (variance `σ_s²` per axis, propagated
+//!   through the low-pass from the density `accel_noise_density`: per
+//!   sample `σ_s² <- (1 - α)² σ_s² + α² d² / dt`, `α = 1 - exp(-dt / T)`)
+//!   is added to the measurement noise: `R_r + (tau² / 2)² σ_s² I`,
+//!   `R_v + tau² σ_s² I`. Its correlation between the two blocks (the same
+//!   `a` in both) is neglected.
 //!
 //! # Keeping `tau` in `[0, max_delay_s]`
 //! After each fusion, a `tau` outside the range is clamped to its nearer
@@ -73,22 +98,22 @@ pub mod measurement;
 pub use config::Aekf17Config;
 
 use crate::ekf16::nav_core::{ExtraState, GpsStep, NavCore};
-use crate::ekf16::state::{NAV_STATES, StateVector, quaternion_of};
+use crate::ekf16::state::{ACCEL_BIAS, NAV_STATES, StateVector, quaternion_of};
 use crate::ekf16::{NavState, RefusalCounters};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{LocalFrame, rotation_matrix};
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, us_to_s};
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use measurement::{AUGMENTED_STATES, AugmentedCovariance, AugmentedStateVector, DELAY};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The augmented 17-state EKF (paper section 2.2.1): the 16-state filter
 /// plus the GPS delay `tau` as a state.
 ///
 /// ```
 /// use delaynav::{Aekf17Config, AugmentedEkf17, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
-/// use nalgebra::Vector3;
+/// use nalgebra::{Matrix3, Vector3};
 ///
 /// let config = Aekf17Config::<f64> { initial_delay_s: 0.2, ..Aekf17Config::default() };
 /// let mut aekf = AugmentedEkf17::new(config)?;
@@ -115,6 +140,16 @@ pub struct AugmentedEkf17<T: Scalar> {
     core: NavCore<T, AUGMENTED_STATES>,
     config: Aekf17Config<T>,
     delay_clamps: u32,
+    smoothed: Option<SmoothedAcceleration<T>>,
+}
+
+/// The low-passed navigation-frame acceleration and the variance of its noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SmoothedAcceleration<T: Scalar> {
+    /// `a_s`, m/s², NED.
+    ned_m_s2: Vector3<T>,
+    /// Noise variance per axis, (m/s²)².
+    noise_variance: T,
 }
 
 /// The delay state as the shared core describes an extra state.
@@ -136,6 +171,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
             core: NavCore::new(config.nav, &[delay_extra_state(&config)])?,
             config,
             delay_clamps: 0,
+            smoothed: None,
         })
     }
 
@@ -169,6 +205,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
             )?,
             config,
             delay_clamps: 0,
+            smoothed: None,
         })
     }
 
@@ -261,18 +298,54 @@ impl<T: Scalar> AugmentedEkf17<T> {
         self.core.refusals()
     }
 
-    /// The rate and specific force of the last IMU sample; without one
-    /// (a filter started from a state) a zero rate and the specific force
-    /// of rest, for which `a = 0`.
-    fn current_imu(&self) -> (Vector3<T>, Vector3<T>) {
-        if let Some(s) = self.core.last_imu() {
-            return (s.gyro_rad_s, s.accel_m_s2);
-        }
+    /// Feeds the accepted IMU sample to the acceleration low-pass (see the
+    /// module docs); `dt` is its step, seconds.
+    fn smooth_acceleration(&mut self, dt: T) {
+        let Some(sample) = self.core.last_imu() else {
+            return;
+        };
+        let c = &self.config;
+        let (a, _, _) = measurement::navigation_acceleration(
+            self.core.state(),
+            &sample.accel_m_s2,
+            c.nav.gravity_m_s2,
+        );
+        let sample_variance = c.nav.accel_noise_density * c.nav.accel_noise_density / dt;
+        let time_constant = c.accel_smoothing_s;
+        self.smoothed = Some(match self.smoothed {
+            Some(prev) if time_constant > T::zero() => {
+                let alpha = T::one() - (-dt / time_constant).exp();
+                let keep = T::one() - alpha;
+                SmoothedAcceleration {
+                    ned_m_s2: prev.ned_m_s2 + (a - prev.ned_m_s2) * alpha,
+                    noise_variance: keep * keep * prev.noise_variance
+                        + alpha * alpha * sample_variance,
+                }
+            }
+            _ => SmoothedAcceleration {
+                ned_m_s2: a,
+                noise_variance: sample_variance,
+            },
+        });
+    }
+
+    /// The inputs of the delayed GPS model at the current state: measured
+    /// rate, the body-frame specific force for which the model's `a` is the
+    /// smoothed acceleration, and that acceleration's noise variance.
+    /// Without a smoothed value yet (no IMU step since initialization): the
+    /// last sample, with no noise counted; without any sample (a filter
+    /// started from a state): a zero rate and the specific force of rest.
+    fn gps_model_inputs(&self) -> (Vector3<T>, Vector3<T>, T) {
         let x = self.core.state();
         let rot = rotation_matrix(&quaternion_of(x));
         let g = Vector3::new(T::zero(), T::zero(), self.config.nav.gravity_m_s2);
-        let rest = x.fixed_rows::<3>(crate::ekf16::state::ACCEL_BIAS) - rot.transpose() * g;
-        (Vector3::zeros(), rest)
+        let bias = x.fixed_rows::<3>(ACCEL_BIAS);
+        let body_force = |a: &Vector3<T>| rot.transpose() * (a - g) + bias;
+        match (self.core.last_imu(), self.smoothed) {
+            (Some(s), Some(a)) => (s.gyro_rad_s, body_force(&a.ned_m_s2), a.noise_variance),
+            (Some(s), None) => (s.gyro_rad_s, s.accel_m_s2, T::zero()),
+            (None, _) => (Vector3::zeros(), body_force(&Vector3::zeros()), T::zero()),
+        }
     }
 
     /// Moves `tau` back into `[0, max_delay_s]` if a fusion took it out.
@@ -288,7 +361,17 @@ impl<T: Scalar> AugmentedEkf17<T> {
 
 impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
     fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
-        self.core.push_imu(imu)
+        let before = self.core.time_us();
+        let result = self.core.push_imu(imu);
+        match (&result, before, self.core.time_us()) {
+            (Ok(()), Some(t0), Some(t1)) if self.core.is_initialized() && t1 > t0 => {
+                self.smooth_acceleration(us_to_s(t1 - t0));
+            }
+            // A gap: the low-pass restarts from the next sample.
+            (Err(Error::StepTooLong { .. }), ..) => self.smoothed = None,
+            _ => {}
+        }
+        result
     }
 
     /// Fuses the delayed position then the delayed velocity (eq. 11, see
@@ -301,22 +384,26 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
             GpsStep::Measure(m) => m,
         };
         let c = self.config.nav;
-        let (gyro, accel) = self.current_imu();
+        let (gyro, accel, accel_variance) = self.gps_model_inputs();
+        let tau = self.core.state()[DELAY];
         let (h, jac) = measurement::delayed_gps_position(
             self.core.state(),
             &accel,
             &c.lever_arm_m,
             c.gravity_m_s2,
         );
+        let half_tau2 = tau * tau * T::lit(0.5);
         let position = self.core.fuse(
             m.t_us,
             &(m.position_ned_m - h),
             &jac,
-            &m.position_noise,
+            &(m.position_noise + Matrix3::identity() * (accel_variance * half_tau2 * half_tau2)),
             c.gps_position_gate,
             "gps.position",
         )?;
         self.keep_delay_in_range();
+        let accel = self.gps_model_inputs().1;
+        let tau = self.core.state()[DELAY];
         let (h, jac) = measurement::delayed_gps_velocity(
             self.core.state(),
             &gyro,
@@ -328,7 +415,7 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
             m.t_us,
             &(m.velocity_ned_m_s - h),
             &jac,
-            &m.velocity_noise,
+            &(m.velocity_noise + Matrix3::identity() * (accel_variance * tau * tau)),
             c.gps_velocity_gate,
             "gps.velocity",
         )?;

@@ -27,6 +27,14 @@ pub enum Motion {
     ConstantVelocity { velocity: [f64; 3] },
     /// Coordinated level turn at constant speed (m/s) and yaw rate (rad/s).
     Turn { speed: f64, rate: f64, yaw0: f64 },
+    /// Level, nose north, flying north at `speed` (m/s) while sliding east
+    /// and west, `amplitude * sin(omega t)` (m, rad/s): an acceleration
+    /// whose magnitude changes.
+    Weave {
+        speed: f64,
+        amplitude: f64,
+        omega: f64,
+    },
 }
 
 #[derive(Clone, Copy)]
@@ -68,6 +76,20 @@ pub fn truth(m: Motion, t: f64) -> Truth {
                 Vector3::new(c, s, 0.0) * speed,
                 Vector3::new(0.0, rate * bank.sin(), rate * bank.cos()),
                 Vector3::new(-s, c, 0.0) * (speed * rate),
+            )
+        }
+        Motion::Weave {
+            speed,
+            amplitude,
+            omega,
+        } => {
+            let (s, c) = (omega * t).sin_cos();
+            (
+                quaternion_from_euler(0.0, 0.0, 0.0),
+                Vector3::new(speed * t, amplitude * s, 0.0),
+                Vector3::new(speed, amplitude * omega * c, 0.0),
+                Vector3::zeros(),
+                Vector3::new(0.0, -amplitude * omega * omega * s, 0.0),
             )
         }
     };
