@@ -75,6 +75,20 @@ pub enum Error {
         /// How far back the history goes.
         available_us: u64,
     },
+    /// A fractional delay read reached further back than the stored samples.
+    #[error("delay of {requested_samples} samples requested, only {stored_samples} samples stored")]
+    DelayBeyondHistory {
+        /// The requested delay, samples, rounded up.
+        requested_samples: u64,
+        /// Samples stored in the line.
+        stored_samples: u64,
+    },
+    /// Too little data for a result.
+    #[error("not enough data: {what}")]
+    NotEnoughData {
+        /// What was missing.
+        what: &'static str,
+    },
     /// The operation needs an initialized estimator.
     #[error("estimator not initialized")]
     NotInitialized,

@@ -13,16 +13,50 @@
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
 //! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
+//! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
+//!
+//! ## On a microcontroller (`no_std`, `f32`)
+//!
+//! Build with `default-features = false`. Nothing allocates after
+//! construction; your driver types feed the filter through the sensor traits:
+//!
+//! ```
+//! use delaynav::{Ekf16, Ekf16Config, ImuSample, Navigator};
+//! use nalgebra::Vector3;
+//!
+//! /// What an MPU-9250 driver might hand over: raw counts and a timestamp.
+//! struct RawImu { t_us: u64, gyro: [i16; 3], accel: [i16; 3] }
+//!
+//! impl ImuSample<f32> for RawImu {
+//!     fn time_us(&self) -> u64 { self.t_us }
+//!     fn gyro_rad_s(&self) -> Vector3<f32> {
+//!         // +-2000 deg/s full scale
+//!         Vector3::from(self.gyro.map(|c| c as f32 * (2000.0 / 32768.0) * core::f32::consts::PI / 180.0))
+//!     }
+//!     fn accel_m_s2(&self) -> Vector3<f32> {
+//!         // +-16 g full scale
+//!         Vector3::from(self.accel.map(|c| c as f32 * (16.0 * 9.80665 / 32768.0)))
+//!     }
+//! }
+//!
+//! let mut ekf = Ekf16::<f32>::new(Ekf16Config::default()).expect("default config is valid");
+//! // Level and at rest: z reads -1 g (2048 counts at +-16 g).
+//! let sample = RawImu { t_us: 1_000, gyro: [0; 3], accel: [0, 0, -2048] };
+//! ekf.push_imu(&sample).expect("a finite sample is accepted");
+//! // A duplicate timestamp is refused with a typed error.
+//! assert!(ekf.push_imu(&sample).is_err());
+//! ```
 //!
 //! ## Conventions
 //! Navigation frame NED, body frame FRD, quaternions Hamilton scalar-first
 //! rotating body to NED, timestamps integer microseconds on the IMU clock.
-//! See [`geo`] and [`sensors`].
+//! See [`geo`] and [`sensors`]; the equations are in `docs/math.md`.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod aekf17;
+pub mod delay;
 pub mod ekf16;
 pub mod error;
 pub mod estimate;
@@ -30,10 +64,18 @@ pub mod geo;
 pub mod kalman;
 pub mod scalar;
 pub mod sensors;
+#[cfg(feature = "sim")]
+pub mod sim;
 
 pub use aekf17::{Aekf17Config, AugmentedEkf17};
+pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 pub use scalar::Scalar;
 pub use sensors::{Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
+
+/// The README's examples, compiled and run as doctests so they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

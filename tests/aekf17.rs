@@ -13,8 +13,8 @@ use delaynav::{
 };
 use nalgebra::{SMatrix, Vector3};
 
-mod common;
-use common::*;
+mod flight;
+use flight::*;
 
 /// The augmented filter configured like the 16-state tests' filter.
 fn aekf_config<T: Scalar>(initial_delay_s: f64) -> Aekf17Config<T> {

@@ -13,8 +13,8 @@ use delaynav::{
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
-mod common;
-use common::*;
+mod flight;
+use flight::*;
 
 macro_rules! ekf16_tests {
     ($mod:ident, $t:ty, jac_step = $step:expr, jac_tol = $jtol:expr, round = $round:expr) => {

@@ -1,284 +1,187 @@
-//! Synthetic truth, sensors and numeric helpers shared by the filter tests
-//! (`ekf16`, `aekf17`): closed-form trajectories, a deterministic noise
-//! source, a flight loop feeding any `Navigator`, finite differences.
+//! Synthetic truth for the delay tests: band-limited random NED motion, IMU
+//! accelerations and delayed, noisy GPS velocities. No `rand`: a tiny LCG
+//! with a fixed seed.
 #![allow(dead_code)]
 
-use delaynav::ekf16::state::NAV_STATES;
-use delaynav::geo::{
-    euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix, wrap_pi,
-};
-use delaynav::{
-    Ekf16Config, Error, Estimate, Gps, GpsPosition, Imu, Mag, NavState, Navigator, Scalar,
-};
-use nalgebra::{SMatrix, SVector, UnitQuaternion, Vector3};
+/// Knuth's MMIX linear congruential generator.
+pub struct Lcg(pub u64);
 
-pub const G: f64 = 9.806_65;
-pub const INCLINATION: f64 = 1.1; // rad, 63 deg down
-pub const DECLINATION: f64 = 0.2; // rad east
-
-// ---------------------------------------------------------------- truth
-
-/// The true motion, f64.
-#[derive(Clone, Copy)]
-pub enum Motion {
-    /// At rest at the origin with a fixed attitude.
-    Static { roll: f64, pitch: f64, yaw: f64 },
-    /// Straight, level, constant velocity; nose along the velocity.
-    ConstantVelocity { velocity: [f64; 3] },
-    /// Coordinated level turn at constant speed (m/s) and yaw rate (rad/s).
-    Turn { speed: f64, rate: f64, yaw0: f64 },
-    /// Level, nose north, flying north at `speed` (m/s) while sliding east
-    /// and west, `amplitude * sin(omega t)` (m, rad/s): an acceleration
-    /// whose magnitude changes.
-    Weave {
-        speed: f64,
-        amplitude: f64,
-        omega: f64,
-    },
-}
-
-#[derive(Clone, Copy)]
-pub struct Truth {
-    pub q: UnitQuaternion<f64>,
-    pub r: Vector3<f64>,
-    pub v: Vector3<f64>,
-    pub gyro: Vector3<f64>,
-    pub accel: Vector3<f64>,
-}
-
-pub fn truth(m: Motion, t: f64) -> Truth {
-    let (q, r, v, gyro, a) = match m {
-        Motion::Static { roll, pitch, yaw } => (
-            quaternion_from_euler(roll, pitch, yaw),
-            Vector3::zeros(),
-            Vector3::zeros(),
-            Vector3::zeros(),
-            Vector3::zeros(),
-        ),
-        Motion::ConstantVelocity { velocity } => {
-            let v = Vector3::from(velocity);
-            (
-                quaternion_from_euler(0.0, 0.0, v.y.atan2(v.x)),
-                v * t,
-                v,
-                Vector3::zeros(),
-                Vector3::zeros(),
-            )
-        }
-        Motion::Turn { speed, rate, yaw0 } => {
-            let yaw = yaw0 + rate * t;
-            let bank = (speed * rate / G).atan();
-            let (s, c) = yaw.sin_cos();
-            let (s0, c0) = yaw0.sin_cos();
-            (
-                quaternion_from_euler(bank, 0.0, yaw),
-                Vector3::new(s - s0, c0 - c, 0.0) * (speed / rate),
-                Vector3::new(c, s, 0.0) * speed,
-                Vector3::new(0.0, rate * bank.sin(), rate * bank.cos()),
-                Vector3::new(-s, c, 0.0) * (speed * rate),
-            )
-        }
-        Motion::Weave {
-            speed,
-            amplitude,
-            omega,
-        } => {
-            let (s, c) = (omega * t).sin_cos();
-            (
-                quaternion_from_euler(0.0, 0.0, 0.0),
-                Vector3::new(speed * t, amplitude * s, 0.0),
-                Vector3::new(speed, amplitude * omega * c, 0.0),
-                Vector3::zeros(),
-                Vector3::new(0.0, -amplitude * omega * omega * s, 0.0),
-            )
-        }
-    };
-    let accel = rotation_matrix(q.quaternion()).transpose() * (a - Vector3::new(0.0, 0.0, G));
-    Truth {
-        q,
-        r,
-        v,
-        gyro,
-        accel,
-    }
-}
-
-// ---------------------------------------------------------------- sensors
-
-/// Deterministic Gaussian noise (xorshift64* and Box-Muller).
-pub struct Noise(pub u64);
-
-impl Noise {
+impl Lcg {
     pub fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        ((self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
-    pub fn gauss(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (core::f64::consts::TAU * v).cos()
-    }
-    pub fn vec3(&mut self, std: f64) -> Vector3<f64> {
-        Vector3::new(self.gauss(), self.gauss(), self.gauss()) * std
-    }
-}
 
-/// A sensor suite flying a motion.
-#[derive(Clone, Copy)]
-pub struct Scenario {
-    pub motion: Motion,
-    pub imu_rate_hz: f64,
-    pub seconds: f64,
-    pub gyro_bias: [f64; 3],
-    pub accel_bias: [f64; 3],
-    /// Scale of every noise (0 = perfect sensors, 1 = the default config's noise).
-    pub noise: f64,
-    pub with_mag: bool,
-    /// Time of the first GPS fix, s (the filter aligns before it).
-    pub first_gps_s: f64,
-}
-
-pub fn config<T: Scalar>() -> Ekf16Config<T> {
-    Ekf16Config {
-        mag_inclination_rad: T::lit(INCLINATION),
-        mag_declination_rad: T::lit(DECLINATION),
-        ..Ekf16Config::default()
+    /// Standard normal (Box-Muller).
+    pub fn normal(&mut self) -> f64 {
+        let (u1, u2) = (self.uniform(), self.uniform());
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
     }
 }
 
-pub fn v3<T: Scalar>(v: &Vector3<f64>) -> Vector3<T> {
-    v.map(T::lit)
+/// Sum of sines per NED axis: a(t) = sum A sin(w t + p), v(t) = sum -A/w cos(w t + p).
+pub struct Motion {
+    /// (amplitude m/s^2, angular frequency rad/s, phase rad) per axis.
+    pub terms: [Vec<(f64, f64, f64)>; 3],
 }
 
-pub fn to_f64<T: Scalar>(v: &Vector3<T>) -> Vector3<f64> {
-    v.map(|x| x.as_f64())
-}
-
-/// Runs a scenario through a navigator: IMU every tick, GPS and
-/// magnetometer at 10 Hz (right after the IMU sample of the same tick).
-/// `each` sees the navigator and the truth after every IMU tick.
-pub fn fly<T: Scalar, N: Navigator<T>>(nav: &mut N, s: &Scenario, each: impl FnMut(&N, &Truth)) {
-    fly_delayed(nav, s, 0.0, each);
-}
-
-/// As [`fly`] with a GPS delay: the fix received at `t` carries the truth
-/// at `t - delay_s` (noise drawn in the same order, so a zero delay is
-/// exactly [`fly`]).
-pub fn fly_delayed<T: Scalar, N: Navigator<T>>(
-    nav: &mut N,
-    s: &Scenario,
-    delay_s: f64,
-    mut each: impl FnMut(&N, &Truth),
-) {
-    let c = config::<f64>();
-    let mut rng = Noise(0x9E37_79B9_7F4A_7C15);
-    let gyro_std = s.noise * c.gyro_noise_density * s.imu_rate_hz.sqrt();
-    let accel_std = s.noise * c.accel_noise_density * s.imu_rate_hz.sqrt();
-    let period_us = (1e6 / s.imu_rate_hz).round() as u64;
-    let ticks = (s.seconds * s.imu_rate_hz) as u64;
-    let aux_every = (s.imu_rate_hz / 10.0).round() as u64;
-    let m_n = magnetic_field_ned(INCLINATION, DECLINATION);
-    for k in 0..=ticks {
-        let t_us = k * period_us;
-        let tr = truth(s.motion, t_us as f64 * 1e-6);
-        let imu = Imu {
-            t_us,
-            gyro_rad_s: v3(&(tr.gyro + Vector3::from(s.gyro_bias) + rng.vec3(gyro_std))),
-            accel_m_s2: v3(&(tr.accel + Vector3::from(s.accel_bias) + rng.vec3(accel_std))),
-        };
-        match nav.push_imu(&imu) {
-            // A filter started from a state at t = 0 already has this time.
-            Err(Error::DuplicateTimestamp { .. }) if k == 0 => {}
-            r => r.unwrap(),
-        }
-        if k % aux_every == 0 {
-            if s.with_mag {
-                let m_b = rotation_matrix(tr.q.quaternion()).transpose() * m_n
-                    + rng.vec3(s.noise * c.mag_noise_variance.sqrt());
-                nav.push_mag(&Mag {
-                    t_us,
-                    field_body: v3(&m_b),
+impl Motion {
+    /// `count` sines per axis with frequencies uniform in [f_lo, f_hi] Hz and
+    /// amplitudes scaled so each axis has the given rms acceleration.
+    pub fn random(seed: u64, count: usize, f_lo: f64, f_hi: f64, rms: [f64; 3]) -> Self {
+        let mut rng = Lcg(seed);
+        let terms = rms.map(|r| {
+            let amp = if count == 0 {
+                0.0
+            } else {
+                r * (2.0 / count as f64).sqrt()
+            };
+            (0..count)
+                .map(|_| {
+                    let f = f_lo + (f_hi - f_lo) * rng.uniform();
+                    (
+                        amp,
+                        2.0 * std::f64::consts::PI * f,
+                        2.0 * std::f64::consts::PI * rng.uniform(),
+                    )
                 })
-                .unwrap();
-            }
-            if k > 0 && t_us as f64 >= s.first_gps_s * 1e6 {
-                let seen = truth(s.motion, t_us as f64 * 1e-6 - delay_s);
-                let gps = Gps {
-                    t_us,
-                    position: GpsPosition::Ned(v3(
-                        &(seen.r + rng.vec3(s.noise * c.gps_horizontal_std_m))
-                    )),
-                    velocity_ned_m_s: v3(&(seen.v + rng.vec3(s.noise * c.gps_velocity_std_m_s))),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
-                nav.push_gps(&gps).unwrap();
-            }
+                .collect()
+        });
+        Self { terms }
+    }
+
+    pub fn hover() -> Self {
+        Self {
+            terms: [vec![], vec![], vec![]],
         }
-        each(nav, &tr);
+    }
+
+    pub fn accel(&self, t: f64) -> [f64; 3] {
+        core::array::from_fn(|i| {
+            self.terms[i]
+                .iter()
+                .map(|&(a, w, p)| a * (w * t + p).sin())
+                .sum()
+        })
+    }
+
+    pub fn velocity(&self, t: f64) -> [f64; 3] {
+        core::array::from_fn(|i| {
+            self.terms[i]
+                .iter()
+                .map(|&(a, w, p)| -a / w * (w * t + p).cos())
+                .sum()
+        })
     }
 }
 
-/// A GPS fix without receiver accuracies.
-pub fn gps_fix<T: Scalar>(t_us: u64, position: GpsPosition<T>, velocity: Vector3<T>) -> Gps<T> {
-    Gps {
+/// One sensor event in time order.
+#[derive(Debug, Clone, Copy)]
+pub enum Event {
+    /// IMU NED acceleration (truth + noise) at t_us.
+    Imu(u64, [f64; 3]),
+    /// GPS velocity received at t_us describing the vehicle at t - delay.
+    Gps(u64, [f64; 3]),
+}
+
+pub struct Scenario {
+    pub imu_hz: f64,
+    pub gps_hz: f64,
+    pub duration_s: f64,
+    /// Accelerometer-side noise sigma per sample, m/s^2 (0.01 g^2 variance: 0.98).
+    pub accel_sigma: f64,
+    /// GPS velocity noise sigma, m/s (0.1 (m/s)^2 variance: 0.316).
+    pub gps_sigma: f64,
+    /// IMU timestamp jitter, +- us (uniform).
+    pub imu_jitter_us: f64,
+    /// GPS receive-time jitter, +- us (uniform), around the fix's epoch plus
+    /// the delay (the real log: std 7 ms, range +-20 ms).
+    pub gps_jitter_us: f64,
+    pub seed: u64,
+}
+
+impl Scenario {
+    pub fn simulator() -> Self {
+        Self {
+            imu_hz: 1000.0,
+            gps_hz: 10.0,
+            duration_s: 60.0,
+            accel_sigma: 0.98,
+            gps_sigma: 0.1f64.sqrt(),
+            imu_jitter_us: 0.0,
+            gps_jitter_us: 0.0,
+            seed: 7,
+        }
+    }
+
+    pub fn real_log_like() -> Self {
+        Self {
+            imu_hz: 50.0,
+            gps_hz: 5.0,
+            duration_s: 90.0,
+            accel_sigma: 0.98,
+            gps_sigma: 0.1f64.sqrt(),
+            imu_jitter_us: 2000.0,
+            gps_jitter_us: 12_000.0,
+            seed: 11,
+        }
+    }
+
+    /// The event stream for a motion and a delay schedule `delay(t)` (s).
+    pub fn events(&self, motion: &Motion, delay: impl Fn(f64) -> f64) -> Vec<Event> {
+        let mut rng = Lcg(self.seed);
+        let mut events = Vec::new();
+        let imu_dt = 1e6 / self.imu_hz;
+        let n_imu = (self.duration_s * self.imu_hz) as u64;
+        for k in 1..=n_imu {
+            let jitter = if self.imu_jitter_us > 0.0 {
+                (rng.uniform() * 2.0 - 1.0) * self.imu_jitter_us
+            } else {
+                0.0
+            };
+            let t_us = (k as f64 * imu_dt + jitter).round() as u64;
+            let a = motion.accel(t_us as f64 * 1e-6);
+            events.push(Event::Imu(
+                t_us,
+                a.map(|x| x + self.accel_sigma * rng.normal()),
+            ));
+        }
+        let gps_dt = 1e6 / self.gps_hz;
+        let n_gps = (self.duration_s * self.gps_hz) as u64;
+        for k in 1..=n_gps {
+            let epoch_us = k as f64 * gps_dt + 137.0;
+            let jitter = (rng.uniform() * 2.0 - 1.0) * self.gps_jitter_us;
+            let t_us = (epoch_us + jitter).round() as u64;
+            let epoch = epoch_us * 1e-6;
+            let v = motion.velocity(epoch - delay(epoch));
+            events.push(Event::Gps(
+                t_us,
+                v.map(|x| x + self.gps_sigma * rng.normal()),
+            ));
+        }
+        // GPS after IMU at equal times: the receiver's message arrives after the sample.
+        events.sort_by_key(|e| match *e {
+            Event::Imu(t, _) => (t, 0),
+            Event::Gps(t, _) => (t, 1),
+        });
+        events
+    }
+}
+
+/// A GPS fix carrying only a velocity (the delay loop reads nothing else).
+pub fn velocity_fix<T: delaynav::Scalar>(
+    t_us: u64,
+    velocity: nalgebra::Vector3<T>,
+) -> delaynav::Gps<T> {
+    delaynav::Gps {
         t_us,
-        position,
+        position: delaynav::GpsPosition::Ned(nalgebra::Vector3::zeros()),
         velocity_ned_m_s: velocity,
         horizontal_accuracy_m: None,
         vertical_accuracy_m: None,
         speed_accuracy_m_s: None,
     }
-}
-
-/// Roll, pitch, yaw errors (rad, wrapped) of an estimate against the truth.
-pub fn euler_error<T: Scalar>(e: &Estimate<T>, tr: &Truth) -> Vector3<f64> {
-    let est = to_f64(&e.euler_rad());
-    let tru = euler_from_quaternion(tr.q.quaternion());
-    (est - tru).map(wrap_pi)
-}
-
-/// Smallest eigenvalue of a symmetric matrix, relative to its largest magnitude.
-pub fn min_relative_eigenvalue<T: Scalar, const N: usize>(p: &SMatrix<T, N, N>) -> f64 {
-    let p64 = nalgebra::DMatrix::from_iterator(N, N, p.iter().map(|x| x.as_f64()));
-    let eig = p64.symmetric_eigen().eigenvalues;
-    eig.min() / eig.amax()
-}
-
-/// Central finite-difference Jacobian of `f` at `x`.
-pub fn numeric_jacobian<T: Scalar, const N: usize, const M: usize>(
-    x: &SVector<T, N>,
-    step: T,
-    f: impl Fn(&SVector<T, N>) -> SVector<T, M>,
-) -> SMatrix<T, M, N> {
-    let mut jac = SMatrix::<T, M, N>::zeros();
-    for j in 0..N {
-        let mut xp = *x;
-        let mut xm = *x;
-        xp[j] += step;
-        xm[j] -= step;
-        jac.set_column(j, &((f(&xp) - f(&xm)) / (step + step)));
-    }
-    jac
-}
-
-/// A state off the axes: tilted attitude, motion, biases.
-pub fn sample_state<T: Scalar>() -> SVector<T, NAV_STATES> {
-    NavState {
-        attitude: quaternion_from_euler(T::lit(0.3), T::lit(-0.4), T::lit(2.0)),
-        position_ned_m: Vector3::new(T::lit(10.0), T::lit(-5.0), T::lit(-2.0)),
-        velocity_ned_m_s: Vector3::new(T::lit(3.0), T::lit(-1.0), T::lit(0.5)),
-        accel_bias_m_s2: Vector3::new(T::lit(0.1), T::lit(-0.2), T::lit(0.3)),
-        gyro_bias_rad_s: Vector3::new(T::lit(0.01), T::lit(-0.02), T::lit(0.005)),
-    }
-    .to_vector()
-}
-
-pub fn max_abs_diff<T: Scalar, const R: usize, const C: usize>(
-    a: &SMatrix<T, R, C>,
-    b: &SMatrix<T, R, C>,
-) -> f64 {
-    (a - b).amax().as_f64()
 }

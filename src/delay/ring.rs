@@ -1,0 +1,75 @@
+//! A fixed-capacity ring of `Copy` values, newest first by age.
+//!
+//! Every buffer of the delay loop is one of these: no allocation, `O(1)` push,
+//! `O(1)` random access by age (age 0 is the newest value).
+
+/// Fixed-capacity ring buffer; pushing into a full ring drops the oldest value.
+#[derive(Debug, Clone)]
+pub(crate) struct Ring<E: Copy, const N: usize> {
+    data: [E; N],
+    /// Index where the next value is written.
+    head: usize,
+    len: usize,
+}
+
+impl<E: Copy, const N: usize> Ring<E, N> {
+    /// An empty ring; `fill` only initializes the storage.
+    pub(crate) fn new(fill: E) -> Self {
+        const { assert!(N > 0, "a ring needs room for at least one value") };
+        Self {
+            data: [fill; N],
+            head: 0,
+            len: 0,
+        }
+    }
+
+    /// Appends a value, dropping the oldest one when full.
+    #[inline]
+    pub(crate) fn push(&mut self, value: E) {
+        self.data[self.head] = value;
+        self.head = (self.head + 1) % N;
+        if self.len < N {
+            self.len += 1;
+        }
+    }
+
+    /// Number of stored values.
+    #[inline]
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The value pushed `age` pushes ago (0 = newest), if still stored.
+    #[inline]
+    pub(crate) fn get(&self, age: usize) -> Option<E> {
+        if age < self.len {
+            Some(self.data[(self.head + N - 1 - age) % N])
+        } else {
+            None
+        }
+    }
+
+    /// Removes and returns the oldest value.
+    #[inline]
+    pub(crate) fn pop_oldest(&mut self) -> Option<E> {
+        if self.len == 0 {
+            return None;
+        }
+        let oldest = self.data[(self.head + N - self.len) % N];
+        self.len -= 1;
+        Some(oldest)
+    }
+
+    /// The oldest stored value.
+    #[inline]
+    pub(crate) fn oldest(&self) -> Option<E> {
+        self.len.checked_sub(1).and_then(|age| self.get(age))
+    }
+
+    /// Forgets every value.
+    #[inline]
+    pub(crate) fn clear(&mut self) {
+        self.head = 0;
+        self.len = 0;
+    }
+}
