@@ -97,7 +97,7 @@ pub mod measurement;
 
 pub use config::Aekf17Config;
 
-use crate::ekf16::nav_core::{ExtraState, GpsStep, NavCore};
+use crate::ekf16::nav_core::{ExtraState, GpsBlock, GpsBlockModel, GpsMeasurement, NavCore};
 use crate::ekf16::state::{ACCEL_BIAS, NAV_STATES, StateVector, quaternion_of};
 use crate::ekf16::{NavState, RefusalCounters};
 use crate::error::Error;
@@ -328,33 +328,53 @@ impl<T: Scalar> AugmentedEkf17<T> {
             },
         });
     }
+}
 
-    /// The inputs of the delayed GPS model at the current state: measured
-    /// rate, the body-frame specific force for which the model's `a` is the
-    /// smoothed acceleration, and that acceleration's noise variance.
-    /// Without a smoothed value yet (no IMU step since initialization): the
-    /// last sample, with no noise counted; without any sample (a filter
-    /// started from a state): a zero rate and the specific force of rest.
-    fn gps_model_inputs(&self) -> (Vector3<T>, Vector3<T>, T) {
-        let x = self.core.state();
-        let rot = rotation_matrix(&quaternion_of(x));
-        let g = Vector3::new(T::zero(), T::zero(), self.config.nav.gravity_m_s2);
-        let bias = x.fixed_rows::<3>(ACCEL_BIAS);
-        let body_force = |a: &Vector3<T>| rot.transpose() * (a - g) + bias;
-        match (self.core.last_imu(), self.smoothed) {
-            (Some(s), Some(a)) => (s.gyro_rad_s, body_force(&a.ned_m_s2), a.noise_variance),
-            (Some(s), None) => (s.gyro_rad_s, s.accel_m_s2, T::zero()),
-            (None, _) => (Vector3::zeros(), body_force(&Vector3::zeros()), T::zero()),
+/// The delayed GPS model of one block at the core's current state (see the
+/// module docs): `h`, `H` and the fix's noise plus the acceleration noise
+/// carried through `tau`.
+///
+/// The inputs: the measured rate and the body-frame specific force for
+/// which the model's `a` is the smoothed acceleration. Without a smoothed
+/// value yet (no IMU step since initialization) the last sample is used,
+/// with no noise counted; without any sample (a filter started from a
+/// state), a zero rate and the specific force of rest (`a = 0`).
+fn delayed_gps_model<T: Scalar>(
+    core: &NavCore<T, AUGMENTED_STATES>,
+    config: &Aekf17Config<T>,
+    smoothed: Option<SmoothedAcceleration<T>>,
+    block: GpsBlock,
+    m: &GpsMeasurement<T>,
+) -> GpsBlockModel<T, AUGMENTED_STATES> {
+    let x = core.state();
+    let nav = &config.nav;
+    let rot = rotation_matrix(&quaternion_of(x));
+    let g = Vector3::new(T::zero(), T::zero(), nav.gravity_m_s2);
+    let body_force = |a: &Vector3<T>| rot.transpose() * (a - g) + x.fixed_rows::<3>(ACCEL_BIAS);
+    let (gyro, accel, accel_variance) = match (core.last_imu(), smoothed) {
+        (Some(s), Some(a)) => (s.gyro_rad_s, body_force(&a.ned_m_s2), a.noise_variance),
+        (Some(s), None) => (s.gyro_rad_s, s.accel_m_s2, T::zero()),
+        (None, _) => (Vector3::zeros(), body_force(&Vector3::zeros()), T::zero()),
+    };
+    let tau = x[DELAY];
+    match block {
+        GpsBlock::Position => {
+            let (h, jac) =
+                measurement::delayed_gps_position(x, &accel, &nav.lever_arm_m, nav.gravity_m_s2);
+            let half_tau2 = tau * tau * T::lit(0.5);
+            let extra = accel_variance * half_tau2 * half_tau2;
+            (h, jac, m.position_noise + Matrix3::identity() * extra)
         }
-    }
-
-    /// Moves `tau` back into `[0, max_delay_s]` if a fusion took it out.
-    fn keep_delay_in_range(&mut self) {
-        if self
-            .core
-            .clamp_extra_state(DELAY, T::zero(), self.config.max_delay_s)
-        {
-            self.delay_clamps = self.delay_clamps.saturating_add(1);
+        GpsBlock::Velocity => {
+            let (h, jac) = measurement::delayed_gps_velocity(
+                x,
+                &gyro,
+                &accel,
+                &nav.lever_arm_m,
+                nav.gravity_m_s2,
+            );
+            let extra = accel_variance * tau * tau;
+            (h, jac, m.velocity_noise + Matrix3::identity() * extra)
         }
     }
 }
@@ -378,50 +398,18 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
     /// [`measurement`]), each block gated on its own, `tau` kept in range
     /// after each.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        let m = match self.core.begin_gps(gps)? {
-            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
-            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
-            GpsStep::Measure(m) => m,
-        };
-        let c = self.config.nav;
-        let (gyro, accel, accel_variance) = self.gps_model_inputs();
-        let tau = self.core.state()[DELAY];
-        let (h, jac) = measurement::delayed_gps_position(
-            self.core.state(),
-            &accel,
-            &c.lever_arm_m,
-            c.gravity_m_s2,
-        );
-        let half_tau2 = tau * tau * T::lit(0.5);
-        let position = self.core.fuse(
-            m.t_us,
-            &(m.position_ned_m - h),
-            &jac,
-            &(m.position_noise + Matrix3::identity() * (accel_variance * half_tau2 * half_tau2)),
-            c.gps_position_gate,
-            "gps.position",
-        )?;
-        self.keep_delay_in_range();
-        let accel = self.gps_model_inputs().1;
-        let tau = self.core.state()[DELAY];
-        let (h, jac) = measurement::delayed_gps_velocity(
-            self.core.state(),
-            &gyro,
-            &accel,
-            &c.lever_arm_m,
-            c.gravity_m_s2,
-        );
-        let velocity = self.core.fuse(
-            m.t_us,
-            &(m.velocity_ned_m_s - h),
-            &jac,
-            &(m.velocity_noise + Matrix3::identity() * (accel_variance * tau * tau)),
-            c.gps_velocity_gate,
-            "gps.velocity",
-        )?;
-        self.keep_delay_in_range();
-        self.core.record_gps(position, velocity);
-        Ok(GpsOutcome::Fused { position, velocity })
+        let (config, smoothed) = (&self.config, self.smoothed);
+        let clamps = &mut self.delay_clamps;
+        self.core.push_gps(
+            gps,
+            |core, block, m| delayed_gps_model(core, config, smoothed, block, m),
+            // Keep tau in [0, max_delay_s], P untouched (see the module docs).
+            |core| {
+                if core.clamp_extra_state(DELAY, T::zero(), config.max_delay_s) {
+                    *clamps = clamps.saturating_add(1);
+                }
+            },
+        )
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {

@@ -80,7 +80,7 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-use nav_core::{GpsStep, NavCore};
+use nav_core::{GpsBlock, NavCore};
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.
@@ -249,36 +249,26 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
     /// Fuses position then velocity with the lever-arm models of
     /// [`measurement`], each block gated on its own.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        let m = match self.core.begin_gps(gps)? {
-            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
-            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
-            GpsStep::Measure(m) => m,
-        };
-        let c = *self.core.config();
-        let gyro = self
-            .core
-            .last_imu()
-            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
-        let (h, jac) = measurement::gps_position(&self.core.nav_state(), &c.lever_arm_m);
-        let position = self.core.fuse(
-            m.t_us,
-            &(m.position_ned_m - h),
-            &jac,
-            &m.position_noise,
-            c.gps_position_gate,
-            "gps.position",
-        )?;
-        let (h, jac) = measurement::gps_velocity(&self.core.nav_state(), &gyro, &c.lever_arm_m);
-        let velocity = self.core.fuse(
-            m.t_us,
-            &(m.velocity_ned_m_s - h),
-            &jac,
-            &m.velocity_noise,
-            c.gps_velocity_gate,
-            "gps.velocity",
-        )?;
-        self.core.record_gps(position, velocity);
-        Ok(GpsOutcome::Fused { position, velocity })
+        self.core.push_gps(
+            gps,
+            |core, block, m| {
+                let lever = &core.config().lever_arm_m;
+                match block {
+                    GpsBlock::Position => {
+                        let (h, jac) = measurement::gps_position(&core.nav_state(), lever);
+                        (h, jac, m.position_noise)
+                    }
+                    GpsBlock::Velocity => {
+                        let gyro = core
+                            .last_imu()
+                            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+                        let (h, jac) = measurement::gps_velocity(&core.nav_state(), &gyro, lever);
+                        (h, jac, m.velocity_noise)
+                    }
+                }
+            },
+            |_| {},
+        )
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {

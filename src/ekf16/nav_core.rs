@@ -27,8 +27,10 @@
 //!   picks its noise (receiver accuracies or configured). Before
 //!   initialization it returns [`GpsStep::Waiting`] or initializes from the
 //!   fix ([`GpsStep::Initialized`]); afterwards it returns the
-//!   [`GpsMeasurement`] for the filter's own GPS model, which fuses it with
-//!   [`NavCore::fuse`] and stores the records with [`NavCore::record_gps`].
+//!   [`GpsMeasurement`] for the filter's own GPS model.
+//!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
+//!   fuse position then velocity with [`NavCore::fuse`], store the records
+//!   with [`NavCore::record_gps`].
 //! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
 //!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
@@ -54,7 +56,7 @@ use super::state::{
     attitude_covariance, quaternion_of,
 };
 use crate::error::Error;
-use crate::estimate::{Estimate, FusionRecord, MagOutcome};
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
     LocalFrame, euler_from_quaternion, magnetic_field_ned, quaternion_from_euler,
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
@@ -147,6 +149,19 @@ pub(crate) enum GpsStep<T: Scalar> {
     /// Fuse this measurement with the filter's GPS model.
     Measure(GpsMeasurement<T>),
 }
+
+/// The two halves of a GPS fix, fused one after the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum GpsBlock {
+    /// Antenna position, NED.
+    Position,
+    /// Antenna velocity, NED.
+    Velocity,
+}
+
+/// A filter's GPS model for one block at the core's current state:
+/// `(h(x), H (3 x N), R)`.
+pub(crate) type GpsBlockModel<T, const N: usize> = (Vector3<T>, SMatrix<T, 3, N>, Matrix3<T>);
 
 /// The shared filter machinery; see the module docs for the contract.
 #[derive(Debug, Clone)]
@@ -631,6 +646,47 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             }
         }
         Ok(record)
+    }
+
+    /// Feeds one GPS fix: [`NavCore::begin_gps`], then the position block
+    /// and the velocity block, each linearized by `model` at the state left
+    /// by the previous step, fused with its gate and followed by
+    /// `after_fusion`; the records are stored with [`NavCore::record_gps`].
+    pub(crate) fn push_gps<G: GpsFix<T> + ?Sized>(
+        &mut self,
+        gps: &G,
+        mut model: impl FnMut(&Self, GpsBlock, &GpsMeasurement<T>) -> GpsBlockModel<T, N>,
+        mut after_fusion: impl FnMut(&mut Self),
+    ) -> Result<GpsOutcome<T>, Error> {
+        let m = match self.begin_gps(gps)? {
+            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
+            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
+            GpsStep::Measure(m) => m,
+        };
+        let (h, jac, r) = model(self, GpsBlock::Position, &m);
+        let gate = self.config.gps_position_gate;
+        let position = self.fuse(
+            m.t_us,
+            &(m.position_ned_m - h),
+            &jac,
+            &r,
+            gate,
+            "gps.position",
+        )?;
+        after_fusion(self);
+        let (h, jac, r) = model(self, GpsBlock::Velocity, &m);
+        let gate = self.config.gps_velocity_gate;
+        let velocity = self.fuse(
+            m.t_us,
+            &(m.velocity_ned_m_s - h),
+            &jac,
+            &r,
+            gate,
+            "gps.velocity",
+        )?;
+        after_fusion(self);
+        self.record_gps(position, velocity);
+        Ok(GpsOutcome::Fused { position, velocity })
     }
 
     /// Stores the records of one GPS fusion and counts rejections.
