@@ -214,16 +214,6 @@ impl<T: Scalar> AugmentedEkf17<T> {
         &self.config
     }
 
-    /// True once initialized (from a GPS fix or a given state).
-    pub fn is_initialized(&self) -> bool {
-        self.core.is_initialized()
-    }
-
-    /// Time of the state (last accepted IMU sample), microseconds.
-    pub fn time_us(&self) -> Option<u64> {
-        self.core.time_us()
-    }
-
     /// The 17-state vector `[x; tau]` (meaningful once initialized).
     pub fn state_vector(&self) -> &AugmentedStateVector<T> {
         self.core.state()
@@ -278,25 +268,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
         self.delay_clamps
     }
 
-    /// The local NED frame of geodetic GPS fixes, once known.
-    pub fn frame(&self) -> Option<&LocalFrame> {
-        self.core.frame()
-    }
-
-    /// Records of the last GPS fusion: (position, velocity).
-    pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
-        self.core.last_gps_fusion()
-    }
-
-    /// Record of the last magnetometer fusion.
-    pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
-        self.core.last_mag_fusion()
-    }
-
-    /// Counters of refused and gated-out samples.
-    pub fn refusals(&self) -> RefusalCounters {
-        self.core.refusals()
-    }
+    crate::ekf16::nav_core::core_accessors!();
 
     /// Feeds the accepted IMU sample to the acceleration low-pass (see the
     /// module docs); `dt` is its step, seconds.

@@ -150,6 +150,43 @@ pub(crate) enum GpsStep<T: Scalar> {
     Measure(GpsMeasurement<T>),
 }
 
+/// The accessors every filter on a `NavCore` (field `core`) shares, spelled
+/// once: initialization, clock, frame, fusion records, refusal counters.
+macro_rules! core_accessors {
+    () => {
+        /// True once initialized (from a GPS fix or a given state).
+        pub fn is_initialized(&self) -> bool {
+            self.core.is_initialized()
+        }
+
+        /// Time of the state (last accepted IMU sample), microseconds.
+        pub fn time_us(&self) -> Option<u64> {
+            self.core.time_us()
+        }
+
+        /// The local NED frame of geodetic GPS fixes, once known.
+        pub fn frame(&self) -> Option<&LocalFrame> {
+            self.core.frame()
+        }
+
+        /// Records of the last GPS fusion: (position, velocity).
+        pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+            self.core.last_gps_fusion()
+        }
+
+        /// Record of the last magnetometer fusion.
+        pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+            self.core.last_mag_fusion()
+        }
+
+        /// Counters of refused and gated-out samples.
+        pub fn refusals(&self) -> RefusalCounters {
+            self.core.refusals()
+        }
+    };
+}
+pub(crate) use core_accessors;
+
 /// The two halves of a GPS fix, fused one after the other.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum GpsBlock {
