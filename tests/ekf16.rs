@@ -1,6 +1,7 @@
 //! ekf16: Jacobians against finite differences, convergence on synthetic
 //! trajectories generated here (static level, constant velocity, coordinated
-//! turn), invariants over long runs, refusal of bad input, in f32 and f64.
+//! turn), invariants over long runs, refusal of bad input, in f32 and f64; the
+//! arbitrary-input property also runs the augmented filter on the same core.
 
 use delaynav::ekf16::state::{self, ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
 use delaynav::ekf16::{measurement, process};
@@ -8,8 +9,8 @@ use delaynav::geo::{
     euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix, wrap_pi,
 };
 use delaynav::{
-    Ekf16, Ekf16Config, Error, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, NavState,
-    Navigator, Scalar,
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Gps, GpsOutcome, GpsPosition, Imu,
+    Mag, MagOutcome, NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -904,8 +905,49 @@ mod properties {
         ]
     }
 
-    fn run<T: Scalar>(inputs: &[Input]) -> Result<(), TestCaseError> {
-        let mut ekf = Ekf16::<T>::new(config()).unwrap();
+    /// What the property looks at in a filter: its full state and covariance.
+    trait Inspect {
+        fn initialized(&self) -> bool;
+        /// State and covariance finite, and the quaternion's norm.
+        fn health(&self) -> (bool, bool, f64);
+    }
+
+    impl<T: Scalar> Inspect for Ekf16<T> {
+        fn initialized(&self) -> bool {
+            self.is_initialized()
+        }
+        fn health(&self) -> (bool, bool, f64) {
+            let x = self.state_vector();
+            let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
+            let q = x.fixed_rows::<4>(QUAT).norm().as_f64();
+            (
+                finite(x.as_slice()),
+                finite(self.covariance().as_slice()),
+                q,
+            )
+        }
+    }
+
+    impl<T: Scalar> Inspect for AugmentedEkf17<T> {
+        fn initialized(&self) -> bool {
+            self.is_initialized()
+        }
+        fn health(&self) -> (bool, bool, f64) {
+            let x = self.state_vector();
+            let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
+            let q = x.fixed_rows::<4>(QUAT).norm().as_f64();
+            (
+                finite(x.as_slice()),
+                finite(self.covariance().as_slice()),
+                q,
+            )
+        }
+    }
+
+    fn run<T: Scalar, N: Navigator<T> + Inspect>(
+        mut ekf: N,
+        inputs: &[Input],
+    ) -> Result<(), TestCaseError> {
         let (mut t_imu, mut t_gps, mut t_mag) = (0u64, 0u64, 0u64);
         let c = |a: &[f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
         for i in inputs {
@@ -938,16 +980,10 @@ mod properties {
                     });
                 }
             }
-            if ekf.is_initialized() {
-                prop_assert!(
-                    ekf.state_vector().iter().all(|v| v.is_finite()),
-                    "non-finite state"
-                );
-                prop_assert!(
-                    ekf.covariance().iter().all(|v| v.is_finite()),
-                    "non-finite covariance"
-                );
-                let n = ekf.state_vector().fixed_rows::<4>(QUAT).norm().as_f64();
+            if ekf.initialized() {
+                let (state_finite, covariance_finite, n) = ekf.health();
+                prop_assert!(state_finite, "non-finite state");
+                prop_assert!(covariance_finite, "non-finite covariance");
                 prop_assert!((n - 1.0).abs() < 1e-4, "|q| = {}", n);
             }
         }
@@ -959,8 +995,10 @@ mod properties {
 
         #[test]
         fn arbitrary_finite_inputs_never_panic_or_produce_nan(inputs in proptest::collection::vec(input(), 1..200)) {
-            run::<f32>(&inputs)?;
-            run::<f64>(&inputs)?;
+            run(Ekf16::<f32>::new(config()).unwrap(), &inputs)?;
+            run(Ekf16::<f64>::new(config()).unwrap(), &inputs)?;
+            run(AugmentedEkf17::<f32>::new(Aekf17Config::with_nav(config())).unwrap(), &inputs)?;
+            run(AugmentedEkf17::<f64>::new(Aekf17Config::with_nav(config())).unwrap(), &inputs)?;
         }
     }
 }
