@@ -912,37 +912,28 @@ mod properties {
         fn health(&self) -> (bool, bool, f64);
     }
 
-    impl<T: Scalar> Inspect for Ekf16<T> {
-        fn initialized(&self) -> bool {
-            self.is_initialized()
-        }
-        fn health(&self) -> (bool, bool, f64) {
-            let x = self.state_vector();
-            let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
-            let q = x.fixed_rows::<4>(QUAT).norm().as_f64();
-            (
-                finite(x.as_slice()),
-                finite(self.covariance().as_slice()),
-                q,
-            )
-        }
+    /// Both filters expose the same inherent accessors.
+    macro_rules! inspect_filter {
+        ($filter:ident) => {
+            impl<T: Scalar> Inspect for $filter<T> {
+                fn initialized(&self) -> bool {
+                    self.is_initialized()
+                }
+                fn health(&self) -> (bool, bool, f64) {
+                    let x = self.state_vector();
+                    let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
+                    let q = x.fixed_rows::<4>(QUAT).norm().as_f64();
+                    (
+                        finite(x.as_slice()),
+                        finite(self.covariance().as_slice()),
+                        q,
+                    )
+                }
+            }
+        };
     }
-
-    impl<T: Scalar> Inspect for AugmentedEkf17<T> {
-        fn initialized(&self) -> bool {
-            self.is_initialized()
-        }
-        fn health(&self) -> (bool, bool, f64) {
-            let x = self.state_vector();
-            let finite = |m: &[T]| m.iter().all(|v| v.is_finite());
-            let q = x.fixed_rows::<4>(QUAT).norm().as_f64();
-            (
-                finite(x.as_slice()),
-                finite(self.covariance().as_slice()),
-                q,
-            )
-        }
-    }
+    inspect_filter!(Ekf16);
+    inspect_filter!(AugmentedEkf17);
 
     fn run<T: Scalar, N: Navigator<T> + Inspect>(
         mut ekf: N,
