@@ -29,7 +29,7 @@ use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
     csv::write_run, delay_bound_s, noise_floor,
 };
-use delaynav::{Ekf16, Ekf16Config};
+use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -130,15 +130,27 @@ struct Estimator {
 
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
-    vec![Estimator {
-        name: "ekf16",
-        run: |s| {
-            score(
-                Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
-                s,
-            )
+    vec![
+        Estimator {
+            name: "ekf16",
+            run: |s| {
+                score(
+                    Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
+                    s,
+                )
+            },
         },
-    }]
+        Estimator {
+            name: "aekf17",
+            run: |s| {
+                score(
+                    AugmentedEkf17::new(Aekf17Config::with_nav(ekf16_config(&s.config)))
+                        .expect("valid Aekf17 config"),
+                    s,
+                )
+            },
+        },
+    ]
 }
 
 /// The 16-state EKF configured with the simulator's own noise (Table 3 read
