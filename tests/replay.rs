@@ -969,15 +969,12 @@ fn run_every_estimator(
         mag_declination_rad: declination,
         ..delaynav::Ekf16Config::default()
     };
-    vec![(
-        "ekf16",
-        run_on(
-            delaynav::Ekf16::new(ekf16).unwrap(),
-            &files,
-            reader,
-            options,
-        ),
-    )]
+    let aekf17 = delaynav::AugmentedEkf17::new(delaynav::Aekf17Config::with_nav(ekf16)).unwrap();
+    let ekf16 = delaynav::Ekf16::new(ekf16).unwrap();
+    vec![
+        ("aekf17", run_on(aekf17, &files, reader, options)),
+        ("ekf16", run_on(ekf16, &files, reader, options)),
+    ]
 }
 
 fn flight_window() -> delaynav::replay::RunOptions {

@@ -19,7 +19,7 @@ use delaynav::replay::{
     ReferenceAlignment, ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
     inclination_at_rest, replay,
 };
-use delaynav::{Ekf16, Ekf16Config, Estimate, Navigator};
+use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Estimate, Navigator};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use std::error::Error;
@@ -88,11 +88,21 @@ struct Registered {
     run: fn(&Setup, &mut Outputs) -> Result<RunSummary, Failure>,
 }
 
-const ESTIMATORS: &[Registered] = &[Registered {
-    name: "ekf16",
-    about: "16-state EKF, GPS fused as if current (no delay handling)",
-    run: |setup, out| run_one(setup, out, "ekf16", &mut Ekf16::new(setup.ekf16_config())?),
-}];
+const ESTIMATORS: &[Registered] = &[
+    Registered {
+        name: "aekf17",
+        about: "17-state augmented EKF with the delay as a state (the paper's baseline)",
+        run: |setup, out| {
+            let config = Aekf17Config::with_nav(setup.ekf16_config());
+            run_one(setup, out, "aekf17", &mut AugmentedEkf17::new(config)?)
+        },
+    },
+    Registered {
+        name: "ekf16",
+        about: "16-state EKF, GPS fused as if current (no delay handling)",
+        run: |setup, out| run_one(setup, out, "ekf16", &mut Ekf16::new(setup.ekf16_config())?),
+    },
+];
 
 /// The names `--estimator` understands, including those not built yet.
 const PLANNED: [&str; 3] = ["proposed", "aekf17", "ekf16"];
