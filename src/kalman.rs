@@ -80,6 +80,30 @@ pub fn joseph_update<T: Scalar, const N: usize, const M: usize>(
     t_us: u64,
     measurement: &'static str,
 ) -> Result<FusionRecord<T, M>, Error> {
+    joseph_update_restricted(x, p, innovation, h, r, gate, t_us, measurement, None)
+}
+
+/// [`joseph_update`] with the gain restricted to `K' = C K` by a matrix `C`
+/// (`N x N`, `None`: no restriction), a "consider" (Schmidt) update.
+///
+/// `C` keeps the part of the correction a measurement may make; the
+/// directions it removes are not corrected but their uncertainty still
+/// enters `S` and, through `H`, the correlations that shape the gain. The
+/// Joseph form `(I - K'H) P (I - K'H)^T + K' R K'^T` is the exact
+/// covariance of the update for any gain, so `P` stays consistent: the
+/// states left alone keep their variance instead of shrinking.
+#[allow(clippy::too_many_arguments)]
+pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
+    x: &mut SVector<T, N>,
+    p: &mut SMatrix<T, N, N>,
+    innovation: &SVector<T, M>,
+    h: &SMatrix<T, M, N>,
+    r: &SMatrix<T, M, M>,
+    gate: T,
+    t_us: u64,
+    measurement: &'static str,
+    gain_restriction: Option<&SMatrix<T, N, N>>,
+) -> Result<FusionRecord<T, M>, Error> {
     let pht: SMatrix<T, N, M> = *p * h.transpose();
     let mut s: SMatrix<T, M, M> = h * pht + r;
     symmetrize(&mut s);
@@ -104,7 +128,10 @@ pub fn joseph_update<T: Scalar, const N: usize, const M: usize>(
         return Ok(record);
     }
     // K = P H^T S^-1  <=>  S K^T = H P (S symmetric).
-    let k: SMatrix<T, N, M> = chol.solve(&pht.transpose()).transpose();
+    let mut k: SMatrix<T, N, M> = chol.solve(&pht.transpose()).transpose();
+    if let Some(c) = gain_restriction {
+        k = c * k;
+    }
     let x_new = *x + k * innovation;
     let i_kh = SMatrix::<T, N, N>::identity() - k * h;
     let mut p_new = i_kh * *p * i_kh.transpose() + k * r * k.transpose();

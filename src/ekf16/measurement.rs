@@ -60,7 +60,7 @@ use super::state::{GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, quaternio
 use crate::ekf16::process::rotation_jacobian;
 use crate::geo::rotation_matrix;
 use crate::scalar::Scalar;
-use nalgebra::{Matrix3, Quaternion, RowVector4, SMatrix, Vector3};
+use nalgebra::{Matrix3, Quaternion, RowVector3, RowVector4, SMatrix, Vector3};
 
 /// Jacobian of a 3-D measurement with respect to the 16 navigation states.
 pub type MeasurementJacobian<T> = SMatrix<T, 3, NAV_STATES>;
@@ -179,4 +179,74 @@ pub fn mag_model<T: Scalar>(
     jac.fixed_view_mut::<3, 4>(0, QUAT)
         .copy_from(&(dh_dpsi * heading_jacobian(&q)));
     (h, jac)
+}
+
+/// `d psi_mag / d m_b` (1x3): how the tilt-compensated heading
+/// ([`tilt_compensated_heading`](crate::geo::tilt_compensated_heading)) of a
+/// body field `m_b` moves with the field, roll and pitch held at `roll`, `pitch`.
+pub fn tilt_compensated_heading_gradient<T: Scalar>(
+    field_body: &Vector3<T>,
+    roll: T,
+    pitch: T,
+) -> RowVector3<T> {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let m = field_body;
+    let xh = cp * m.x + sp * (sr * m.y + cr * m.z);
+    let yh = cr * m.y - sr * m.z;
+    let dxh = RowVector3::new(cp, sp * sr, sp * cr);
+    let dyh = RowVector3::new(T::zero(), cr, -sr);
+    // psi = atan2(-yh, xh): d psi = (yh dxh - xh dyh) / (xh² + yh²).
+    (dxh * yh - dyh * xh) / (xh * xh + yh * yh)
+}
+
+/// `d(R(q)^T u)/dq` (3x4) for a fixed NED vector `u`: the body-frame
+/// reading of `u` as the attitude moves (`R(q)^T = R(q*)`).
+pub fn inverse_rotation_jacobian<T: Scalar>(q: &Quaternion<T>, u: &Vector3<T>) -> SMatrix<T, 3, 4> {
+    let mut j = rotation_jacobian(&q.conjugate(), u);
+    for c in 1..4 {
+        j.column_mut(c).neg_mut();
+    }
+    j
+}
+
+/// The magnetometer model of [`mag_model`] with the Jacobian of the heading
+/// the filter actually measures: `psi_mag(m_b, roll^, pitch^)` with the body
+/// field `m_b = R(q)^T m_n` and roll, pitch held at the estimate used to
+/// de-rotate it,
+///
+/// ```text
+/// H_m = [C_phi C_theta (dC_psi/dpsi) m_n] (d psi_mag/d m_b) d(R(q)^T m_n)/dq
+/// ```
+///
+/// Along a pure yaw change this equals [`mag_model`]'s `dpsi/dq`; along a
+/// tilt change it is not zero when the field is inclined: a heading
+/// computed with a wrong roll or pitch is wrong by about `tan(I)` times the
+/// tilt error. Ignoring that term (as [`mag_model`] does) makes the filter
+/// treat the tilt error it feeds in as information on yaw.
+pub fn mag_model_tilt_coupled<T: Scalar>(
+    x: &StateVector<T>,
+    roll: T,
+    pitch: T,
+    field_ned: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let psi = heading(&q);
+    let tilt = c_roll(roll) * c_pitch(pitch);
+    let h = tilt * (c_yaw(psi) * field_ned);
+    let dh_dpsi = tilt * (c_yaw_derivative(psi) * field_ned);
+    let field_body = rotation_matrix(&q).transpose() * field_ned;
+    let dpsi_dq = tilt_compensated_heading_gradient(&field_body, roll, pitch)
+        * inverse_rotation_jacobian(&q, field_ned);
+    let mut jac = MeasurementJacobian::zeros();
+    jac.fixed_view_mut::<3, 4>(0, QUAT)
+        .copy_from(&(dh_dpsi * dpsi_dq));
+    (h, jac)
+}
+
+/// `dq/dpsi` (4x1) of a pure heading change at fixed roll and pitch: the
+/// rotation about the NED down axis, `[0, 0, 0, 1/2] ⊗ q`.
+pub fn yaw_direction<T: Scalar>(q: &Quaternion<T>) -> nalgebra::Vector4<T> {
+    let half = T::lit(0.5);
+    nalgebra::Vector4::new(-q.k, -q.j, q.i, q.w) * half
 }
