@@ -154,7 +154,8 @@ fn estimators() -> Vec<Estimator> {
 }
 
 /// The 16-state EKF configured with the simulator's own noise (Table 3 read
-/// per sample at the IMU rate) and magnetic field.
+/// per sample at the IMU rate), magnetic field and bias spread (the standard
+/// deviation of a uniform draw in `[-max, max]` is `max / sqrt(3)`).
 fn ekf16_config(sim: &SimConfig) -> Ekf16Config<f64> {
     let s = &sim.sensors;
     let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
@@ -165,6 +166,8 @@ fn ekf16_config(sim: &SimConfig) -> Ekf16Config<f64> {
         gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
         gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
         gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
+        initial_accel_bias_std_m_s2: (s.accel_bias_max_m_s2() / 3f64.sqrt()).max(1e-3),
+        initial_gyro_bias_std_rad_s: (s.gyro_bias_max_rad_s / 3f64.sqrt()).max(1e-4),
         ..Ekf16Config::with_per_sample_imu_variances(
             s.gyro_noise_var_rad2_s2,
             s.accel_noise_var_g2 * g2,
