@@ -13,6 +13,7 @@
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
 //! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
+//! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
 //!
 //! ## On a microcontroller (`no_std`, `f32`)
 //!
@@ -63,6 +64,8 @@ pub mod kalman;
 pub mod nav;
 pub mod scalar;
 pub mod sensors;
+#[cfg(feature = "sim")]
+pub mod sim;
 
 pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
