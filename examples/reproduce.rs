@@ -25,6 +25,7 @@
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
 use delaynav::geo::wrap_pi;
+use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
 use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
     csv::write_run, delay_bound_s, noise_floor,
@@ -130,15 +131,61 @@ struct Estimator {
 
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
-    vec![Estimator {
-        name: "ekf16",
-        run: |s| {
-            score(
-                Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
-                s,
-            )
+    vec![
+        Estimator {
+            name: "ekf16",
+            run: |s| {
+                score(
+                    Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
+                    s,
+                )
+            },
         },
-    }]
+        Estimator {
+            name: "proposed",
+            run: |s| {
+                score(
+                    nav(
+                        &s.config,
+                        DelayMode::Estimated {
+                            initial_s: PROPOSED_INITIAL_DELAY_S,
+                        },
+                    ),
+                    s,
+                )
+            },
+        },
+        Estimator {
+            name: "oracle",
+            run: |s| {
+                score(
+                    nav(
+                        &s.config,
+                        DelayMode::Fixed {
+                            delay_s: s.config.delay.initial_s,
+                        },
+                    ),
+                    s,
+                )
+            },
+        },
+    ]
+}
+
+/// Initial delay of the `proposed` row, s: a rough start away from every
+/// scenario's true delay, standing in for the offline calibration.
+const PROPOSED_INITIAL_DELAY_S: f64 = 0.05;
+
+/// The delay-compensated navigator on the same EKF configuration as `ekf16`:
+/// `proposed` estimates the delay, `oracle` is given the true (constant) one.
+fn nav(sim: &SimConfig, mode: DelayMode<f64>) -> DelayCompensatedNav<f64> {
+    let config = NavConfig {
+        ekf: ekf16_config(sim),
+        mode,
+        imu_rate_hz: sim.sensors.imu_rate_hz,
+        ..NavConfig::default()
+    };
+    DelayCompensatedNav::new(config).expect("valid navigator config")
 }
 
 /// The 16-state EKF configured with the simulator's own noise (Table 3 read

@@ -110,7 +110,7 @@ use nalgebra::{SVector, UnitQuaternion, Vector3};
 pub const HISTORY_ORDER: usize = 3;
 
 /// Magnetometer samples waiting for the horizon.
-pub const MAG_QUEUE: usize = 64;
+pub const MAG_QUEUE: usize = 128;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
