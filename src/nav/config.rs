@@ -129,13 +129,12 @@ impl<T: Scalar> NavConfig<T> {
             ("accel_whitening", self.accel_whitening),
             ("gyro_whitening", self.gyro_whitening),
         ] {
-            if let WhiteningFilter::LowPass { cutoff_hz } = filter {
-                if !(cutoff_hz.is_finite()
+            if let WhiteningFilter::LowPass { cutoff_hz } = filter
+                && !(cutoff_hz.is_finite()
                     && cutoff_hz > T::zero()
                     && cutoff_hz < self.imu_rate_hz * T::lit(0.5))
-                {
-                    return bad(field, "cutoff must be positive and below half the IMU rate");
-                }
+            {
+                return bad(field, "cutoff must be positive and below half the IMU rate");
             }
         }
         if !(self.max_horizon_step_ratio.is_finite() && self.max_horizon_step_ratio >= T::one()) {

@@ -33,8 +33,8 @@
 //!    `tau_f` and `tau_f + D_f - D_w`), stamped `t_h`: the instant the raw
 //!    sensors saw.
 //! 4. Forward reckoning: the present output state is propagated with the raw
-//!    sample, then corrected by the horizon EKF (see [`forward`](self) docs
-//!    below and `src/nav/forward.rs`).
+//!    sample, then corrected by the horizon EKF (below, and the derivation in
+//!    `src/nav/forward.rs` and `docs/nav.md`).
 //! 5. The delay loop gets `a_fwd(t) = R(q_present)(f_w - b_f) + [0, 0, g]`,
 //!    `f_w` the whitened accelerometer, stamped `t`.
 //!
@@ -543,12 +543,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         self.last_imu = Some(s);
 
-        if let Some(period_s) = self.period.period_s::<T>() {
-            if let Some(t_h) = self.horizon_target(s.t_us, dt_us, period_s) {
-                self.step_horizon(s.t_us, t_h, period_s);
-                self.drain_mags();
-                self.correct_present();
-            }
+        if let Some(period_s) = self.period.period_s::<T>()
+            && let Some(t_h) = self.horizon_target(s.t_us, dt_us, period_s)
+        {
+            self.step_horizon(s.t_us, t_h, period_s);
+            self.drain_mags();
+            self.correct_present();
         }
 
         if self.forward.is_started() {
