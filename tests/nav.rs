@@ -6,7 +6,7 @@
 mod common;
 
 use common::Motion;
-use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, State, Suite, fly};
+use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, State, Suite, feed, fly};
 use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, WhiteningFilter};
 use delaynav::{
@@ -14,10 +14,6 @@ use delaynav::{
     Scalar,
 };
 use nalgebra::Vector3;
-
-fn v3<T: Scalar>(v: &Vector3<f64>) -> Vector3<T> {
-    v.map(T::lit)
-}
 
 fn f64s<T: Scalar>(v: &Vector3<T>) -> Vector3<f64> {
     v.map(|x| x.as_f64())
@@ -33,47 +29,6 @@ fn config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> NavConfig<T> {
         mode,
         imu_rate_hz: T::lit(imu_hz),
         ..NavConfig::default()
-    }
-}
-
-/// Feeds one event (converted to `T`); returns the truth after an IMU sample.
-fn feed<T: Scalar, N: Navigator<T>>(nav: &mut N, event: &FlightEvent) -> Option<State> {
-    match event {
-        FlightEvent::Imu(s, truth) => {
-            nav.push_imu(&Imu {
-                t_us: s.t_us,
-                gyro_rad_s: v3(&s.gyro_rad_s),
-                accel_m_s2: v3(&s.accel_m_s2),
-            })
-            .unwrap();
-            Some(*truth)
-        }
-        FlightEvent::Mag(m) => {
-            assert_eq!(
-                nav.push_mag(&Mag {
-                    t_us: m.t_us,
-                    field_body: v3(&m.field_body),
-                })
-                .unwrap(),
-                MagOutcome::Queued
-            );
-            None
-        }
-        FlightEvent::Gps(g) => {
-            let GpsPosition::Ned(r) = g.position else {
-                unreachable!()
-            };
-            nav.push_gps(&Gps {
-                t_us: g.t_us,
-                position: GpsPosition::Ned(v3(&r)),
-                velocity_ned_m_s: v3(&g.velocity_ned_m_s),
-                horizontal_accuracy_m: None,
-                vertical_accuracy_m: None,
-                speed_accuracy_m_s: None,
-            })
-            .unwrap();
-            None
-        }
     }
 }
 

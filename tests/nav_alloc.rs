@@ -4,40 +4,18 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use common::Motion;
-use common::flight::{Flight, FlightEvent, Suite, fly};
+use common::flight::{Flight, FlightEvent, Suite, feed, fly};
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
-use delaynav::{Gps, GpsPosition, Imu, Mag, Navigator, Scalar};
-use nalgebra::Vector3;
+use delaynav::{Navigator, Scalar};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::allocations;
 
 fn per_sample_path_does_not_allocate<T: Scalar>(mode: DelayMode<T>) {
     let flight = Flight::new(Motion::random(2, 6, 0.05, 0.5, [3.0, 3.0, 1.0]));
     let events = fly(&flight, &Suite::simulator(), 20.0, |_| 0.2, None);
-    let v3 = |v: &Vector3<f64>| v.map(T::lit);
     let mut nav = Box::new(
         DelayCompensatedNav::<T>::new(NavConfig {
             mode,
@@ -45,43 +23,15 @@ fn per_sample_path_does_not_allocate<T: Scalar>(mode: DelayMode<T>) {
         })
         .unwrap(),
     );
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocations();
     for event in &events {
-        match event {
-            FlightEvent::Imu(s, _) => {
-                let imu = Imu {
-                    t_us: s.t_us,
-                    gyro_rad_s: v3(&s.gyro_rad_s),
-                    accel_m_s2: v3(&s.accel_m_s2),
-                };
-                nav.push_imu(&imu).unwrap();
-                let _ = nav.estimate();
-                let _ = nav.horizon_estimate();
-            }
-            FlightEvent::Mag(m) => {
-                nav.push_mag(&Mag {
-                    t_us: m.t_us,
-                    field_body: v3(&m.field_body),
-                })
-                .unwrap();
-            }
-            FlightEvent::Gps(g) => {
-                let GpsPosition::Ned(r) = g.position else {
-                    unreachable!()
-                };
-                let fix = Gps {
-                    t_us: g.t_us,
-                    position: GpsPosition::Ned(v3(&r)),
-                    velocity_ned_m_s: v3(&g.velocity_ned_m_s),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
-                nav.push_gps(&fix).unwrap();
-            }
+        feed(&mut *nav, event);
+        if matches!(event, FlightEvent::Imu(..)) {
+            let _ = nav.estimate();
+            let _ = nav.horizon_estimate();
         }
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = allocations();
     assert!(nav.estimate().is_some());
     assert_eq!(after - before, 0, "allocations on the per-sample path");
 }

@@ -257,3 +257,49 @@ pub fn fly(
     });
     events
 }
+
+/// Feeds one event to a navigator in precision `T`; returns the truth after
+/// an IMU sample. Every sample must be accepted.
+pub fn feed<T: delaynav::Scalar, N: delaynav::Navigator<T>>(
+    nav: &mut N,
+    event: &FlightEvent,
+) -> Option<State> {
+    let v3 = |v: &Vector3<f64>| v.map(T::lit);
+    match event {
+        FlightEvent::Imu(s, truth) => {
+            nav.push_imu(&Imu {
+                t_us: s.t_us,
+                gyro_rad_s: v3(&s.gyro_rad_s),
+                accel_m_s2: v3(&s.accel_m_s2),
+            })
+            .unwrap();
+            Some(*truth)
+        }
+        FlightEvent::Mag(m) => {
+            assert_eq!(
+                nav.push_mag(&Mag {
+                    t_us: m.t_us,
+                    field_body: v3(&m.field_body),
+                })
+                .unwrap(),
+                delaynav::MagOutcome::Queued
+            );
+            None
+        }
+        FlightEvent::Gps(g) => {
+            let GpsPosition::Ned(r) = g.position else {
+                unreachable!("flights use NED fixes")
+            };
+            nav.push_gps(&Gps {
+                t_us: g.t_us,
+                position: GpsPosition::Ned(v3(&r)),
+                velocity_ned_m_s: v3(&g.velocity_ned_m_s),
+                horizontal_accuracy_m: None,
+                vertical_accuracy_m: None,
+                speed_accuracy_m_s: None,
+            })
+            .unwrap();
+            None
+        }
+    }
+}
