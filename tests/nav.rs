@@ -559,3 +559,109 @@ fn initialization_outcomes_follow_ekf16() {
     ));
     let _ = wrap_pi(0.0);
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn finite() -> impl Strategy<Value = f64> {
+        prop_oneof![-1e3f64..1e3, -1e30f64..1e30, Just(0.0), -20.0f64..20.0]
+    }
+
+    fn vec3() -> impl Strategy<Value = [f64; 3]> {
+        [finite(), finite(), finite()]
+    }
+
+    #[derive(Debug, Clone)]
+    enum Input {
+        Imu {
+            dt_us: u64,
+            gyro: [f64; 3],
+            accel: [f64; 3],
+        },
+        Gps {
+            dt_us: u64,
+            p: [f64; 3],
+            v: [f64; 3],
+        },
+        Mag {
+            dt_us: u64,
+            m: [f64; 3],
+        },
+    }
+
+    fn input() -> impl Strategy<Value = Input> {
+        prop_oneof![
+            4 => (prop_oneof![9 => 0u64..20_000, 1 => 0u64..2_000_000], vec3(), vec3())
+                .prop_map(|(dt_us, gyro, accel)| Input::Imu { dt_us, gyro, accel }),
+            // Near level and slow: the filter initializes and runs.
+            12 => (9_000u64..11_000, [-0.2f64..0.2, -0.2..0.2, -0.2..0.2], [-2.0f64..2.0, -2.0..2.0, -11.0..-8.5])
+                .prop_map(|(dt_us, gyro, accel)| Input::Imu { dt_us, gyro, accel }),
+            1 => (0u64..300_000, vec3(), vec3()).prop_map(|(dt_us, p, v)| Input::Gps { dt_us, p, v }),
+            1 => (0u64..100_000, vec3()).prop_map(|(dt_us, m)| Input::Mag { dt_us, m }),
+        ]
+    }
+
+    fn finite_estimate<T: Scalar>(e: &Estimate<T>) -> bool {
+        e.attitude.coords.iter().all(|v| v.is_finite())
+            && e.position_ned_m.iter().all(|v| v.is_finite())
+            && e.velocity_ned_m_s.iter().all(|v| v.is_finite())
+            && e.covariance_diagonal.iter().all(|v| v.is_finite())
+    }
+
+    fn run<T: Scalar>(inputs: &[Input], mode: DelayMode<T>) -> Result<(), TestCaseError> {
+        let mut nav = DelayCompensatedNav::<T, 128>::new(config(mode, 100.0)).unwrap();
+        let (mut t_imu, mut t_gps, mut t_mag) = (0u64, 0u64, 0u64);
+        let c = |a: &[f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
+        for i in inputs {
+            // Results may be errors: only panics and non-finite outputs fail.
+            match i {
+                Input::Imu { dt_us, gyro, accel } => {
+                    t_imu += dt_us;
+                    let _ = nav.push_imu(&Imu {
+                        t_us: t_imu,
+                        gyro_rad_s: c(gyro),
+                        accel_m_s2: c(accel),
+                    });
+                }
+                Input::Gps { dt_us, p, v } => {
+                    t_gps += dt_us;
+                    let _ = nav.push_gps(&Gps {
+                        t_us: t_gps,
+                        position: GpsPosition::Ned(c(p)),
+                        velocity_ned_m_s: c(v),
+                        horizontal_accuracy_m: None,
+                        vertical_accuracy_m: None,
+                        speed_accuracy_m_s: None,
+                    });
+                }
+                Input::Mag { dt_us, m } => {
+                    t_mag += dt_us;
+                    let _ = nav.push_mag(&Mag {
+                        t_us: t_mag,
+                        field_body: c(m),
+                    });
+                }
+            }
+            if let Some(e) = nav.estimate() {
+                prop_assert!(finite_estimate(&e), "non-finite present");
+            }
+            if let Some(e) = nav.horizon_estimate() {
+                prop_assert!(finite_estimate(&e), "non-finite horizon");
+            }
+            prop_assert!(nav.delay_s().is_finite());
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+        #[test]
+        fn arbitrary_finite_inputs_never_panic_or_produce_nan(inputs in proptest::collection::vec(input(), 1..400)) {
+            run::<f32>(&inputs, DelayMode::Estimated { initial_s: 0.2 })?;
+            run::<f64>(&inputs, DelayMode::Estimated { initial_s: 0.2 })?;
+            run::<f64>(&inputs, DelayMode::Fixed { delay_s: 0.05 })?;
+        }
+    }
+}
