@@ -127,7 +127,7 @@ macro_rules! nav_tests {
                 assert!(worst_v < 1e-5 * SLACK, "velocity {worst_v} m/s");
                 assert!(worst_q < 1e-6 * SLACK, "attitude {worst_q} rad");
                 assert!(
-                    worst_span < 0.02 * SLACK,
+                    worst_span < 1e-4 * SLACK,
                     "present - horizon {worst_span} m"
                 );
                 let delays = nav.sensor_delays();
