@@ -519,6 +519,50 @@ nav_tests!(f64_tests, f64, 1.0);
 nav_tests!(f32_tests, f32, 30.0);
 
 #[test]
+fn a_fix_between_imu_samples_is_fused_at_its_own_instant() {
+    let mode = DelayMode::Fixed { delay_s: 0.1 };
+    let mut nav = DelayCompensatedNav::<f64, 64>::new(config(mode, 50.0)).unwrap();
+    let level = |t_us| Imu {
+        t_us,
+        gyro_rad_s: Vector3::zeros(),
+        accel_m_s2: Vector3::new(0.0, 0.0, -9.80665),
+    };
+    let fix = |t_us| Gps {
+        t_us,
+        position: GpsPosition::Ned(Vector3::zeros()),
+        velocity_ned_m_s: Vector3::zeros(),
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    };
+    for k in 1..=100u64 {
+        nav.push_imu(&level(k * 20_000)).unwrap();
+    }
+    assert_eq!(
+        nav.push_gps(&fix(2_000_000)).unwrap(),
+        GpsOutcome::Initialized
+    );
+    for k in 101..=150u64 {
+        nav.push_imu(&level(k * 20_000)).unwrap();
+    }
+    assert_eq!(nav.horizon_estimate().unwrap().t_us, 2_900_000);
+    // 7 ms after the last IMU sample: fused at 3.007 s - 0.1 s.
+    assert!(matches!(
+        nav.push_gps(&fix(3_007_000)).unwrap(),
+        GpsOutcome::Fused { .. }
+    ));
+    assert_eq!(nav.horizon_estimate().unwrap().t_us, 2_907_000);
+    assert_eq!(
+        nav.horizon_filter().last_gps_fusion().unwrap().0.t_us,
+        3_007_000
+    );
+    // The next sample continues from there; the horizon never goes back.
+    nav.push_imu(&level(3_020_000)).unwrap();
+    assert_eq!(nav.horizon_estimate().unwrap().t_us, 2_920_000);
+    assert_eq!(nav.estimate().unwrap().t_us, 3_020_000);
+}
+
+#[test]
 fn initialization_outcomes_follow_ekf16() {
     let mode = DelayMode::Fixed { delay_s: 0.05 };
     let mut nav = DelayCompensatedNav::<f64>::new(config(mode, 1000.0)).unwrap();

@@ -40,8 +40,10 @@
 //!
 //! # GPS fix received at `t`
 //! It describes `t - tau`, which is the horizon: it is fused into the horizon
-//! EKF at once ([`GpsOutcome::Fused`]; the horizon and the fix's instant
-//! differ by less than one IMU step), its velocity goes to the delay loop,
+//! EKF at once ([`GpsOutcome::Fused`]). A fix that arrives between IMU
+//! samples describes an instant up to one IMU step past the horizon; the
+//! horizon first steps there (one more EKF step, read from the history), so
+//! the fix is fused at its own instant. Its velocity goes to the delay loop,
 //! and the fusion's correction reaches the present through the output
 //! predictor.
 //!
@@ -405,6 +407,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         e
     }
 
+    /// `tau` in whole microseconds.
+    fn delay_us(&self) -> u64 {
+        (self.delay_s() * T::lit(1e6)).round().as_f64().max(0.0) as u64
+    }
+
     fn is_estimating(&self) -> bool {
         matches!(self.config.mode, DelayMode::Estimated { .. })
     }
@@ -412,8 +419,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// The horizon time for the present `t_us`, or `None` when the horizon
     /// does not move (or cannot be read yet).
     fn horizon_target(&self, t_us: u64, dt_us: u64, period_s: T) -> Option<u64> {
-        let tau_us = (self.delay_s() * T::lit(1e6)).round().as_f64().max(0.0) as u64;
-        let target = t_us.checked_sub(tau_us)?;
+        let target = t_us.checked_sub(self.delay_us())?;
         let readable_us = self
             .history
             .max_delay_samples()
@@ -453,6 +459,27 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         match self.ekf.push_imu(&sample) {
             Ok(()) => self.horizon_steps += 1,
             Err(_) => bump(&mut self.refusals.horizon_refused),
+        }
+    }
+
+    /// Steps the horizon to the instant a fix received at `t_fix` describes,
+    /// `t_fix - tau`, when that lies between the horizon and the newest IMU
+    /// sample's horizon target (a fix arriving between IMU samples): the fix
+    /// is then fused at its own instant, not up to one IMU step early.
+    fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
+        let (Some(last), Some(horizon), Some(period_s)) = (
+            self.last_imu,
+            self.ekf.time_us(),
+            self.period.period_s::<T>(),
+        ) else {
+            return;
+        };
+        let Some(target) = t_fix_us.checked_sub(self.delay_us()) else {
+            return;
+        };
+        if target > horizon && target <= last.t_us {
+            self.step_horizon(last.t_us, target, period_s);
+            self.drain_mags();
         }
     }
 
@@ -591,6 +618,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 reason: "beyond the plausible range",
             });
         }
+        self.advance_horizon_to_fix(fix.t_us);
         let outcome = self.ekf.push_gps(&fix)?;
         self.last_gps_us = Some(fix.t_us);
         if self.is_estimating() {
