@@ -1,7 +1,12 @@
-//! One prediction step and one GPS update of `Ekf16`, in f32 and f64.
+//! One prediction step and one GPS update of `Ekf16` and of
+//! `AugmentedEkf17`, in f32 and f64, in one run so the ratio is measured on the same
+//! machine state.
 
-use criterion::{Criterion, criterion_group, criterion_main};
-use delaynav::{Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator, Scalar};
+use criterion::measurement::WallTime;
+use criterion::{BatchSize, BenchmarkGroup, Criterion, criterion_group, criterion_main};
+use delaynav::{
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator, Scalar,
+};
 use nalgebra::Vector3;
 use std::hint::black_box;
 
@@ -24,39 +29,47 @@ fn gps<T: Scalar>(k: u64) -> Gps<T> {
     }
 }
 
-/// A filter initialized and run for a second at 1 kHz.
-fn running<T: Scalar>() -> Ekf16<T> {
-    let mut ekf = Ekf16::new(Ekf16Config::default()).unwrap();
+/// A navigator initialized and run for a second at 1 kHz with GPS at 10 Hz.
+fn running<T: Scalar, N: Navigator<T>>(mut nav: N) -> N {
     for k in 0..1000 {
-        ekf.push_imu(&imu::<T>(k)).unwrap();
+        nav.push_imu(&imu::<T>(k)).unwrap();
         if k % 100 == 99 {
-            ekf.push_gps(&gps::<T>(k)).unwrap();
+            nav.push_gps(&gps::<T>(k)).unwrap();
         }
     }
-    ekf
+    nav
 }
 
-fn bench_precision<T: Scalar>(c: &mut Criterion, name: &str) {
-    let mut group = c.benchmark_group(format!("ekf16_{name}"));
-    let base = running::<T>();
-    group.bench_function("predict", |b| {
-        let mut ekf = base.clone();
+fn bench_filter<T: Scalar, N: Navigator<T> + Clone>(
+    group: &mut BenchmarkGroup<'_, WallTime>,
+    filter: &str,
+    base: &N,
+) {
+    group.bench_function(format!("{filter}_predict"), |b| {
+        let mut nav = base.clone();
         let mut k = 1000;
         b.iter(|| {
-            ekf.push_imu(black_box(&imu::<T>(k))).unwrap();
+            nav.push_imu(black_box(&imu::<T>(k))).unwrap();
             k += 1;
         })
     });
-    group.bench_function("gps_update", |b| {
-        // Each iteration fuses one fix into a copy of the same filter, so
-        // every update sees the same covariance.
+    group.bench_function(format!("{filter}_gps_update"), |b| {
+        // Each iteration fuses one fix into a copy of the same filter.
         let fix = gps::<T>(1_000_000);
         b.iter_batched_ref(
             || base.clone(),
-            |ekf| ekf.push_gps(black_box(&fix)).unwrap(),
-            criterion::BatchSize::SmallInput,
+            |nav| nav.push_gps(black_box(&fix)).unwrap(),
+            BatchSize::SmallInput,
         )
     });
+}
+
+fn bench_precision<T: Scalar>(c: &mut Criterion, name: &str) {
+    let mut group = c.benchmark_group(format!("ekf16_vs_aekf17_{name}"));
+    let ekf = running(Ekf16::<T>::new(Ekf16Config::default()).unwrap());
+    bench_filter(&mut group, "ekf16", &ekf);
+    let aekf = running(AugmentedEkf17::<T>::new(Aekf17Config::default()).unwrap());
+    bench_filter(&mut group, "aekf17", &aekf);
     group.finish();
 }
 
@@ -65,5 +78,5 @@ fn benches(c: &mut Criterion) {
     bench_precision::<f64>(c, "f64");
 }
 
-criterion_group!(ekf16_benches, benches);
-criterion_main!(ekf16_benches);
+criterion_group!(filter_benches, benches);
+criterion_main!(filter_benches);

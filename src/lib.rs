@@ -55,6 +55,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod aekf17;
 pub mod delay;
 pub mod ekf16;
 pub mod error;
@@ -67,6 +68,7 @@ pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
 
+pub use aekf17::{Aekf17Config, AugmentedEkf17};
 pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;

@@ -1,8 +1,9 @@
-//! The per-sample path of `Ekf16` allocates nothing after construction:
+//! The per-sample path of `Ekf16` and `AugmentedEkf17` allocates nothing after construction:
 //! a counting global allocator, armed per thread around the measured calls.
 
 use delaynav::{
-    Ekf16, Ekf16Config, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator, Scalar,
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Gps, GpsOutcome, GpsPosition, Imu, Mag,
+    MagOutcome, Navigator, Scalar,
 };
 use nalgebra::Vector3;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -47,8 +48,7 @@ fn allocations_in(f: impl FnOnce()) -> usize {
     ALLOCATIONS.load(Ordering::SeqCst) - before
 }
 
-fn run<T: Scalar>() {
-    let mut ekf = Ekf16::<T>::new(Ekf16Config::default()).unwrap();
+fn run<T: Scalar, N: Navigator<T>>(mut ekf: N) {
     let lit = T::lit;
     let imu = |k: u64| Imu {
         t_us: k * 1000,
@@ -98,7 +98,7 @@ fn run<T: Scalar>() {
         n,
         0,
         "{n} allocations on the per-sample path ({})",
-        core::any::type_name::<T>()
+        core::any::type_name::<N>()
     );
 }
 
@@ -110,6 +110,8 @@ fn predict_and_updates_allocate_nothing() {
         1
     );
     // One test: both precisions in one thread.
-    run::<f32>();
-    run::<f64>();
+    run(Ekf16::<f32>::new(Ekf16Config::default()).unwrap());
+    run(Ekf16::<f64>::new(Ekf16Config::default()).unwrap());
+    run(AugmentedEkf17::<f32>::new(Aekf17Config::default()).unwrap());
+    run(AugmentedEkf17::<f64>::new(Aekf17Config::default()).unwrap());
 }

@@ -80,7 +80,7 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-use nav_core::{GpsStep, NavCore};
+use nav_core::{GpsBlock, NavCore};
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.
@@ -194,16 +194,6 @@ impl<T: Scalar> Ekf16<T> {
         self.core.config()
     }
 
-    /// True once initialized (from a GPS fix or a given state).
-    pub fn is_initialized(&self) -> bool {
-        self.core.is_initialized()
-    }
-
-    /// Time of the state (last accepted IMU sample), microseconds.
-    pub fn time_us(&self) -> Option<u64> {
-        self.core.time_us()
-    }
-
     /// The state vector (eq. 1; meaningful once initialized).
     pub fn state_vector(&self) -> &StateVector<T> {
         self.core.state()
@@ -220,25 +210,7 @@ impl<T: Scalar> Ekf16<T> {
         self.core.covariance()
     }
 
-    /// The local NED frame of geodetic GPS fixes, once known.
-    pub fn frame(&self) -> Option<&LocalFrame> {
-        self.core.frame()
-    }
-
-    /// Records of the last GPS fusion: (position, velocity).
-    pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
-        self.core.last_gps_fusion()
-    }
-
-    /// Record of the last magnetometer fusion.
-    pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
-        self.core.last_mag_fusion()
-    }
-
-    /// Counters of refused and gated-out samples.
-    pub fn refusals(&self) -> RefusalCounters {
-        self.core.refusals()
-    }
+    crate::ekf16::nav_core::core_accessors!();
 }
 
 impl<T: Scalar> Navigator<T> for Ekf16<T> {
@@ -249,36 +221,26 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
     /// Fuses position then velocity with the lever-arm models of
     /// [`measurement`], each block gated on its own.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        let m = match self.core.begin_gps(gps)? {
-            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
-            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
-            GpsStep::Measure(m) => m,
-        };
-        let c = *self.core.config();
-        let gyro = self
-            .core
-            .last_imu()
-            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
-        let (h, jac) = measurement::gps_position(&self.core.nav_state(), &c.lever_arm_m);
-        let position = self.core.fuse(
-            m.t_us,
-            &(m.position_ned_m - h),
-            &jac,
-            &m.position_noise,
-            c.gps_position_gate,
-            "gps.position",
-        )?;
-        let (h, jac) = measurement::gps_velocity(&self.core.nav_state(), &gyro, &c.lever_arm_m);
-        let velocity = self.core.fuse(
-            m.t_us,
-            &(m.velocity_ned_m_s - h),
-            &jac,
-            &m.velocity_noise,
-            c.gps_velocity_gate,
-            "gps.velocity",
-        )?;
-        self.core.record_gps(position, velocity);
-        Ok(GpsOutcome::Fused { position, velocity })
+        self.core.push_gps(
+            gps,
+            |core, block, m| {
+                let lever = &core.config().lever_arm_m;
+                match block {
+                    GpsBlock::Position => {
+                        let (h, jac) = measurement::gps_position(&core.nav_state(), lever);
+                        (h, jac, m.position_noise)
+                    }
+                    GpsBlock::Velocity => {
+                        let gyro = core
+                            .last_imu()
+                            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+                        let (h, jac) = measurement::gps_velocity(&core.nav_state(), &gyro, lever);
+                        (h, jac, m.velocity_noise)
+                    }
+                }
+            },
+            |_| {},
+        )
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {

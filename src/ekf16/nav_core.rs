@@ -27,14 +27,21 @@
 //!   picks its noise (receiver accuracies or configured). Before
 //!   initialization it returns [`GpsStep::Waiting`] or initializes from the
 //!   fix ([`GpsStep::Initialized`]); afterwards it returns the
-//!   [`GpsMeasurement`] for the filter's own GPS model, which fuses it with
-//!   [`NavCore::fuse`] and stores the records with [`NavCore::record_gps`].
+//!   [`GpsMeasurement`] for the filter's own GPS model.
+//!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
+//!   fuse position then velocity with [`NavCore::fuse`], store the records
+//!   with [`NavCore::record_gps`].
 //! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
 //!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
 //! - [`NavCore::push_mag`]: the heading-only magnetometer update of
 //!   [`measurement`](super::measurement) (or keeps the sample for
 //!   initialization).
+//! - [`NavCore::reset_extra_state`] and [`NavCore::clamp_extra_state`]: the
+//!   two ways a filter may change an extra state from outside the Kalman
+//!   algebra. A reset sets the value and variance and drops the state's
+//!   correlations (`P` stays symmetric PSD: a block-diagonal of PSD blocks);
+//!   a clamp moves the value into a range and leaves `P` untouched.
 //! - Every refused sample leaves `x`, `P` and the clocks as they were (except
 //!   [`Error::StepTooLong`], see its docs) and increments a
 //!   [`RefusalCounters`] field.
@@ -49,7 +56,7 @@ use super::state::{
     attitude_covariance, quaternion_of,
 };
 use crate::error::Error;
-use crate::estimate::{Estimate, FusionRecord, MagOutcome};
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
     LocalFrame, euler_from_quaternion, magnetic_field_ned, quaternion_from_euler,
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
@@ -142,6 +149,56 @@ pub(crate) enum GpsStep<T: Scalar> {
     /// Fuse this measurement with the filter's GPS model.
     Measure(GpsMeasurement<T>),
 }
+
+/// The accessors every filter on a `NavCore` (field `core`) shares, spelled
+/// once: initialization, clock, frame, fusion records, refusal counters.
+macro_rules! core_accessors {
+    () => {
+        /// True once initialized (from a GPS fix or a given state).
+        pub fn is_initialized(&self) -> bool {
+            self.core.is_initialized()
+        }
+
+        /// Time of the state (last accepted IMU sample), microseconds.
+        pub fn time_us(&self) -> Option<u64> {
+            self.core.time_us()
+        }
+
+        /// The local NED frame of geodetic GPS fixes, once known.
+        pub fn frame(&self) -> Option<&LocalFrame> {
+            self.core.frame()
+        }
+
+        /// Records of the last GPS fusion: (position, velocity).
+        pub fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+            self.core.last_gps_fusion()
+        }
+
+        /// Record of the last magnetometer fusion.
+        pub fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+            self.core.last_mag_fusion()
+        }
+
+        /// Counters of refused and gated-out samples.
+        pub fn refusals(&self) -> RefusalCounters {
+            self.core.refusals()
+        }
+    };
+}
+pub(crate) use core_accessors;
+
+/// The two halves of a GPS fix, fused one after the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum GpsBlock {
+    /// Antenna position, NED.
+    Position,
+    /// Antenna velocity, NED.
+    Velocity,
+}
+
+/// A filter's GPS model for one block at the core's current state:
+/// `(h(x), H (3 x N), R)`.
+pub(crate) type GpsBlockModel<T, const N: usize> = (Vector3<T>, SMatrix<T, 3, N>, Matrix3<T>);
 
 /// The shared filter machinery; see the module docs for the contract.
 #[derive(Debug, Clone)]
@@ -310,6 +367,53 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// The last magnetometer fusion record.
     pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
         self.last_mag
+    }
+
+    /// Value and variance of extra state `index` (`16..N`): the initial
+    /// ones before initialization.
+    pub(crate) fn extra_state(&self, index: usize) -> (T, T) {
+        debug_assert!((NAV_STATES..N).contains(&index));
+        if self.initialized {
+            (self.x[index], self.p[(index, index)])
+        } else {
+            (self.extra_initial[index], self.extra_variance[index])
+        }
+    }
+
+    /// Sets extra state `index` (`16..N`) to `value` with variance
+    /// `variance` and no correlation with the other states. Before
+    /// initialization this replaces the state's initial value and variance.
+    /// The caller checks that both are finite and the variance not negative.
+    pub(crate) fn reset_extra_state(&mut self, index: usize, value: T, variance: T) {
+        debug_assert!((NAV_STATES..N).contains(&index));
+        if !self.initialized {
+            self.extra_initial[index] = value;
+            self.extra_variance[index] = variance;
+            return;
+        }
+        self.x[index] = value;
+        self.p.row_mut(index).fill(T::zero());
+        self.p.column_mut(index).fill(T::zero());
+        self.p[(index, index)] = variance;
+    }
+
+    /// Moves the value of extra state `index` (`16..N`) into `[lo, hi]`,
+    /// leaving `P` as it is; true when it moved. No-op before initialization.
+    pub(crate) fn clamp_extra_state(&mut self, index: usize, lo: T, hi: T) -> bool {
+        debug_assert!((NAV_STATES..N).contains(&index) && lo <= hi);
+        let v = self.x[index];
+        let clamped = if v < lo {
+            lo
+        } else if v > hi {
+            hi
+        } else {
+            v
+        };
+        if !self.initialized || clamped == v {
+            return false;
+        }
+        self.x[index] = clamped;
+        true
     }
 
     /// Pads a Jacobian over the 16 navigation states with zero columns for the extra states.
@@ -579,6 +683,47 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             }
         }
         Ok(record)
+    }
+
+    /// Feeds one GPS fix: [`NavCore::begin_gps`], then the position block
+    /// and the velocity block, each linearized by `model` at the state left
+    /// by the previous step, fused with its gate and followed by
+    /// `after_fusion`; the records are stored with [`NavCore::record_gps`].
+    pub(crate) fn push_gps<G: GpsFix<T> + ?Sized>(
+        &mut self,
+        gps: &G,
+        mut model: impl FnMut(&Self, GpsBlock, &GpsMeasurement<T>) -> GpsBlockModel<T, N>,
+        mut after_fusion: impl FnMut(&mut Self),
+    ) -> Result<GpsOutcome<T>, Error> {
+        let m = match self.begin_gps(gps)? {
+            GpsStep::Waiting => return Ok(GpsOutcome::Waiting),
+            GpsStep::Initialized => return Ok(GpsOutcome::Initialized),
+            GpsStep::Measure(m) => m,
+        };
+        let (h, jac, r) = model(self, GpsBlock::Position, &m);
+        let gate = self.config.gps_position_gate;
+        let position = self.fuse(
+            m.t_us,
+            &(m.position_ned_m - h),
+            &jac,
+            &r,
+            gate,
+            "gps.position",
+        )?;
+        after_fusion(self);
+        let (h, jac, r) = model(self, GpsBlock::Velocity, &m);
+        let gate = self.config.gps_velocity_gate;
+        let velocity = self.fuse(
+            m.t_us,
+            &(m.velocity_ned_m_s - h),
+            &jac,
+            &r,
+            gate,
+            "gps.velocity",
+        )?;
+        after_fusion(self);
+        self.record_gps(position, velocity);
+        Ok(GpsOutcome::Fused { position, velocity })
     }
 
     /// Stores the records of one GPS fusion and counts rejections.

@@ -1,0 +1,105 @@
+//! Configuration of the augmented 17-state EKF: the 16-state filter's
+//! configuration plus the description of the delay state `tau`.
+//!
+//! | field | unit | meaning |
+//! |---|---|---|
+//! | `nav` | | everything the shared 16-state core needs ([`Ekf16Config`]) |
+//! | `initial_delay_s` | s | `tau` at initialization |
+//! | `initial_delay_std_s` | s | its standard deviation at initialization |
+//! | `delay_random_walk` | s/√s | density of the random walk of `tau` (variance grows by its square per second) |
+//! | `max_delay_s` | s | upper end of the admissible range `[0, max_delay_s]` |
+//! | `accel_smoothing_s` | s | time constant of the low-pass on the acceleration `a` of the GPS model (0: the raw last sample) |
+//!
+//! The defaults start at 0.1 s with a 0.1 s standard deviation (receivers
+//! of this class lag 0.1-0.4 s), let `tau` wander by 1 ms/√s (10 ms in
+//! 100 s without information), bound it to one second and smooth the
+//! acceleration over 50 ms (see the module docs of
+//! [`aekf17`](super) for why the raw sample biases `tau` toward zero).
+
+use crate::ekf16::Ekf16Config;
+use crate::error::Error;
+use crate::scalar::Scalar;
+
+/// Configuration of [`AugmentedEkf17`](super::AugmentedEkf17).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Aekf17Config<T: Scalar> {
+    /// The navigation filter shared with [`Ekf16`](crate::Ekf16).
+    pub nav: Ekf16Config<T>,
+    /// Initial GPS delay `tau`, seconds (within `[0, max_delay_s]`).
+    pub initial_delay_s: T,
+    /// Initial standard deviation of `tau`, seconds.
+    pub initial_delay_std_s: T,
+    /// Random-walk density of `tau`, s/√s (`Q_tau = delay_random_walk² dt`).
+    pub delay_random_walk: T,
+    /// Largest admissible delay, seconds; `tau` is kept in `[0, max_delay_s]`.
+    pub max_delay_s: T,
+    /// Time constant of the first-order low-pass applied to the
+    /// navigation-frame acceleration `a` used by the delayed GPS model,
+    /// seconds; 0 uses the last IMU sample as the paper does.
+    pub accel_smoothing_s: T,
+}
+
+impl<T: Scalar> Default for Aekf17Config<T> {
+    fn default() -> Self {
+        Self {
+            nav: Ekf16Config::default(),
+            initial_delay_s: T::lit(0.1),
+            initial_delay_std_s: T::lit(0.1),
+            delay_random_walk: T::lit(1e-3),
+            max_delay_s: T::lit(1.0),
+            accel_smoothing_s: T::lit(0.05),
+        }
+    }
+}
+
+impl<T: Scalar> Aekf17Config<T> {
+    /// The defaults around a given navigation configuration.
+    pub fn with_nav(nav: Ekf16Config<T>) -> Self {
+        Self {
+            nav,
+            ..Self::default()
+        }
+    }
+
+    /// Checks every field (the navigation part first); the first offending
+    /// one is named in the error.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.nav.validate()?;
+        let finite_positive = |v: T| v.is_finite() && v > T::zero();
+        if !finite_positive(self.max_delay_s) {
+            return Err(Error::InvalidConfig {
+                field: "max_delay_s",
+                reason: "must be finite and positive",
+            });
+        }
+        if !(self.initial_delay_s.is_finite()
+            && self.initial_delay_s >= T::zero()
+            && self.initial_delay_s <= self.max_delay_s)
+        {
+            return Err(Error::InvalidConfig {
+                field: "initial_delay_s",
+                reason: "must lie in [0, max_delay_s]",
+            });
+        }
+        if !finite_positive(self.initial_delay_std_s) {
+            return Err(Error::InvalidConfig {
+                field: "initial_delay_std_s",
+                reason: "must be finite and positive",
+            });
+        }
+        if !(self.delay_random_walk.is_finite() && self.delay_random_walk >= T::zero()) {
+            return Err(Error::InvalidConfig {
+                field: "delay_random_walk",
+                reason: "must be finite and not negative",
+            });
+        }
+        if !(self.accel_smoothing_s.is_finite() && self.accel_smoothing_s >= T::zero()) {
+            return Err(Error::InvalidConfig {
+                field: "accel_smoothing_s",
+                reason: "must be finite and not negative",
+            });
+        }
+        Ok(())
+    }
+}

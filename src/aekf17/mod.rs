@@ -1,0 +1,399 @@
+//! The augmented 17-state EKF of the paper's section 2.2.1: the baseline the
+//! delay-compensated navigator is compared against. The GPS delay `tau` is
+//! a 17th state and the delayed fix is predicted by a second-order Taylor
+//! expansion of the current state (eq. 11).
+//!
+//! | part | where | paper |
+//! |---|---|---|
+//! | state `x^d = [q r v b_f b_w tau]` | [`measurement::DELAY`] | eq. (12) |
+//! | process model, `F`, `A`, `Q` (shared with [`Ekf16`](crate::Ekf16)) | [`ekf16::process`](crate::ekf16::process) | eqs. (2)-(5) |
+//! | delayed GPS model and its `H` (9x17 with the magnetometer rows) | [`measurement`] | eq. (11) |
+//! | magnetometer update, gating, Joseph update (shared) | [`ekf16::measurement`](crate::ekf16::measurement), [`kalman`](crate::kalman) | eqs. (6)-(10) |
+//! | configuration | [`config`] | |
+//!
+//! # One filter, two state sizes
+//! [`Ekf16`](crate::Ekf16) and this filter run the same core: the
+//! propagation, the covariance prediction, the magnetometer update, the
+//! gating, the Joseph update, the initialization and the refusal of bad
+//! input are one code path generic over the state size. This module adds
+//! only what the augmentation changes: the delay state and the GPS model.
+//!
+//! # Delay state
+//! - Process: `tau' = 0` plus white noise of density `delay_random_walk`
+//!   (s/√s): over a step `dt` its variance grows by `delay_random_walk² dt`.
+//!   `tau` is uncorrelated with the navigation states until a GPS fix links
+//!   them through `∂h/∂tau`.
+//! - Initial value and standard deviation: `initial_delay_s`,
+//!   `initial_delay_std_s`; [`AugmentedEkf17::set_delay`] replaces them
+//!   (before or after initialization), e.g. with the result of an offline
+//!   calibration.
+//!
+//! # GPS fix
+//! A fix received at `t` is fused at the filter's time (the last IMU
+//! sample) with the model of [`measurement`]: position block
+//! `r - v tau + a tau²/2` then velocity block `v - a tau` (each with its
+//! lever-arm terms), where `a = R(q)(f - b_f) + [0 0 g]`. Each block is
+//! gated on its NIS and recorded as in [`Ekf16`](crate::Ekf16); the
+//! velocity block is linearized after the position update.
+//!
+//! # The acceleration `a`: smoothed, and its noise counted
+//! The paper takes `f` from the current IMU sample. A single sample
+//! carries the accelerometer's white noise `n_a` (about 1 m/s² per sample at
+//! 1 kHz for the paper's Table 3), and the model treats it as exact: the
+//! velocity innovation then holds `+n_a tau` while `∂h/∂tau = -(a + n_a)`,
+//! so the filter regresses the innovation on a noisy regressor and its
+//! `tau` is pulled toward zero by the factor `|a|² / (|a|² + σ_a²)`
+//! (errors in variables); at rest it is pulled to zero outright while its
+//! variance shrinks, which is dishonest. Two measures:
+//! - `a` is a first-order low-pass (time constant `accel_smoothing_s`) of
+//!   the navigation-frame acceleration `R(q_k)(f~_k - b_f) + [0 0 g]` of
+//!   each IMU sample. Filtering in the navigation frame keeps the low-pass
+//!   from mixing gravity into the horizontal while the body turns. The GPS
+//!   model uses it through the body-frame specific force
+//!   `f = R(q)^T (a_s - [0 0 g]) + b_f` at the current state, so `h`
+//!   evaluates to `a_s` and `H` keeps its terms through `q` and `b_f`.
+//!   The low-pass lags by its time constant, an error `j T tau` (jerk `j`)
+//!   smaller than the Taylor expansion's own `j tau² / 2` when `T < tau / 2`.
+//!   `accel_smoothing_s = 0` is the paper's raw sample.
+//! - The remaining noise of `a` (variance `σ_s²` per axis, propagated
+//!   through the low-pass from the density `accel_noise_density`: per
+//!   sample `σ_s² <- (1 - α)² σ_s² + α² d² / dt`, `α = 1 - exp(-dt / T)`)
+//!   is added to the measurement noise: `R_r + (tau² / 2)² σ_s² I`,
+//!   `R_v + tau² σ_s² I`. Its correlation between the two blocks (the same
+//!   `a` in both) is neglected.
+//!
+//! # Keeping `tau` in `[0, max_delay_s]`
+//! After each fusion, a `tau` outside the range is clamped to its nearer
+//! end; the covariance is left as it is. Why this choice:
+//! - it is the projection of the estimate on the admissible set, the
+//!   maximum a posteriori estimate under a box constraint when the other
+//!   states are held;
+//! - `P` is not touched, so it keeps its symmetry and positive
+//!   semi-definiteness exactly (no ad hoc reduction to get wrong);
+//! - truncating a Gaussian to a half-line shrinks its variance, so keeping
+//!   the untruncated `P` overstates the uncertainty of `tau`: the filter
+//!   stays conservative, never overconfident.
+//!
+//! The alternative, projecting the whole state (`x -= P D^T (D P D^T)^-1 (D x - d)`
+//! with `D` selecting `tau`), would also move the states correlated with
+//! `tau`; with the clamp acting only after bad linearization (a delay
+//! estimate drifting out of range is a symptom, not a measurement) moving
+//! the navigation states on its account is not warranted. Clamps are
+//! counted ([`AugmentedEkf17::delay_clamps`]).
+//!
+//! # Observability
+//! `tau` is seen through `v` (position block) and `a` (velocity block).
+//! With no velocity and no horizontal acceleration the fix says nothing
+//! about `tau` beyond the vertical `g` that the accelerometer cancels;
+//! its variance then grows with the random walk instead of collapsing
+//! (tested).
+//!
+//! # Bad input
+//! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
+//! leave the filter unchanged and are counted in [`RefusalCounters`].
+
+pub mod config;
+pub mod measurement;
+
+pub use config::Aekf17Config;
+
+use crate::ekf16::nav_core::{ExtraState, GpsBlock, GpsBlockModel, GpsMeasurement, NavCore};
+use crate::ekf16::state::{ACCEL_BIAS, NAV_STATES, StateVector, quaternion_of};
+use crate::ekf16::{NavState, RefusalCounters};
+use crate::error::Error;
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
+use crate::geo::{LocalFrame, rotation_matrix};
+use crate::scalar::{Scalar, us_to_s};
+use crate::sensors::{GpsFix, ImuSample, MagSample};
+use measurement::{AUGMENTED_STATES, AugmentedCovariance, AugmentedStateVector, DELAY};
+use nalgebra::{Matrix3, Vector3};
+
+/// The augmented 17-state EKF (paper section 2.2.1): the 16-state filter
+/// plus the GPS delay `tau` as a state.
+///
+/// ```
+/// use delaynav::{Aekf17Config, AugmentedEkf17, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
+/// use nalgebra::{Matrix3, Vector3};
+///
+/// let config = Aekf17Config::<f64> { initial_delay_s: 0.2, ..Aekf17Config::default() };
+/// let mut aekf = AugmentedEkf17::new(config)?;
+/// for k in 0..100u64 {
+///     let imu = Imu { t_us: k * 10_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.80665) };
+///     aekf.push_imu(&imu)?;
+/// }
+/// let fix = Gps {
+///     t_us: 990_500,
+///     position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0)),
+///     velocity_ned_m_s: Vector3::zeros(),
+///     horizontal_accuracy_m: None,
+///     vertical_accuracy_m: None,
+///     speed_accuracy_m_s: None,
+/// };
+/// assert_eq!(aekf.push_gps(&fix)?, GpsOutcome::Initialized);
+/// let e = aekf.estimate().unwrap();
+/// assert_eq!(e.delay_s, Some(0.2));
+/// assert!((e.delay_std_s.unwrap() - 0.1).abs() < 1e-12);
+/// # Ok::<(), delaynav::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct AugmentedEkf17<T: Scalar> {
+    core: NavCore<T, AUGMENTED_STATES>,
+    config: Aekf17Config<T>,
+    delay_clamps: u32,
+    smoothed: Option<SmoothedAcceleration<T>>,
+}
+
+/// The low-passed navigation-frame acceleration and the variance of its noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SmoothedAcceleration<T: Scalar> {
+    /// `a_s`, m/s², NED.
+    ned_m_s2: Vector3<T>,
+    /// Noise variance per axis, (m/s²)².
+    noise_variance: T,
+}
+
+/// The delay state as the shared core describes an extra state.
+fn delay_extra_state<T: Scalar>(c: &Aekf17Config<T>) -> ExtraState<T> {
+    ExtraState {
+        initial: c.initial_delay_s,
+        initial_variance: c.initial_delay_std_s * c.initial_delay_std_s,
+        random_walk_intensity: c.delay_random_walk * c.delay_random_walk,
+    }
+}
+
+impl<T: Scalar> AugmentedEkf17<T> {
+    /// An uninitialized filter; it initializes itself from the first GPS
+    /// fix as [`Ekf16`](crate::Ekf16) does, with `tau` at its configured
+    /// initial value. Fails when the configuration does not validate.
+    pub fn new(config: Aekf17Config<T>) -> Result<Self, Error> {
+        config.validate()?;
+        Ok(Self {
+            core: NavCore::new(config.nav, &[delay_extra_state(&config)])?,
+            config,
+            delay_clamps: 0,
+            smoothed: None,
+        })
+    }
+
+    /// A filter initialized at time `t_us` (microseconds, IMU clock) with a
+    /// known navigation state and diagonal covariance (16 states, as
+    /// [`Ekf16::from_state`](crate::Ekf16::from_state)); `tau` starts at its
+    /// configured initial value and variance.
+    pub fn from_state(
+        config: Aekf17Config<T>,
+        t_us: u64,
+        state: &NavState<T>,
+        covariance_diagonal: &StateVector<T>,
+    ) -> Result<Self, Error> {
+        config.validate()?;
+        let extra = delay_extra_state(&config);
+        let mut x = AugmentedStateVector::zeros();
+        x.fixed_rows_mut::<NAV_STATES>(0)
+            .copy_from(&state.to_vector());
+        x[DELAY] = extra.initial;
+        let mut d = AugmentedStateVector::zeros();
+        d.fixed_rows_mut::<NAV_STATES>(0)
+            .copy_from(covariance_diagonal);
+        d[DELAY] = extra.initial_variance;
+        Ok(Self {
+            core: NavCore::from_state(
+                config.nav,
+                &[extra],
+                t_us,
+                &x,
+                &AugmentedCovariance::from_diagonal(&d),
+            )?,
+            config,
+            delay_clamps: 0,
+            smoothed: None,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Aekf17Config<T> {
+        &self.config
+    }
+
+    /// The 17-state vector `[x; tau]` (meaningful once initialized).
+    pub fn state_vector(&self) -> &AugmentedStateVector<T> {
+        self.core.state()
+    }
+
+    /// The named navigation state, `None` until initialized.
+    pub fn nav_state(&self) -> Option<NavState<T>> {
+        self.is_initialized()
+            .then(|| NavState::from_vector(&self.core.nav_state()))
+    }
+
+    /// The covariance (17x17).
+    pub fn covariance(&self) -> &AugmentedCovariance<T> {
+        self.core.covariance()
+    }
+
+    /// The delay estimate `tau`, seconds (the initial one until initialized).
+    pub fn delay_s(&self) -> T {
+        self.core.extra_state(DELAY).0
+    }
+
+    /// The standard deviation of `tau`, seconds.
+    pub fn delay_std_s(&self) -> T {
+        self.core.extra_state(DELAY).1.sqrt()
+    }
+
+    /// Sets `tau` to `delay_s` with standard deviation `std_s` (seconds),
+    /// uncorrelated with the navigation states, e.g. from the offline
+    /// calibration. Before initialization this replaces the configured
+    /// initial values. Refused (nothing changes) unless `delay_s` lies in
+    /// `[0, max_delay_s]` and `std_s` is finite and positive.
+    pub fn set_delay(&mut self, delay_s: T, std_s: T) -> Result<(), Error> {
+        if !(delay_s.is_finite() && delay_s >= T::zero() && delay_s <= self.config.max_delay_s) {
+            return Err(Error::OutOfRange {
+                field: "delay_s",
+                reason: "must lie in [0, max_delay_s]",
+            });
+        }
+        if !(std_s.is_finite() && std_s > T::zero()) {
+            return Err(Error::OutOfRange {
+                field: "delay_std_s",
+                reason: "must be finite and positive",
+            });
+        }
+        self.core.reset_extra_state(DELAY, delay_s, std_s * std_s);
+        Ok(())
+    }
+
+    /// How many times `tau` left `[0, max_delay_s]` after a fusion and was
+    /// clamped back (see the module docs).
+    pub fn delay_clamps(&self) -> u32 {
+        self.delay_clamps
+    }
+
+    crate::ekf16::nav_core::core_accessors!();
+
+    /// Feeds the accepted IMU sample to the acceleration low-pass (see the
+    /// module docs); `dt` is its step, seconds.
+    fn smooth_acceleration(&mut self, dt: T) {
+        let Some(sample) = self.core.last_imu() else {
+            return;
+        };
+        let c = &self.config;
+        let (a, _, _) = measurement::navigation_acceleration(
+            self.core.state(),
+            &sample.accel_m_s2,
+            c.nav.gravity_m_s2,
+        );
+        let sample_variance = c.nav.accel_noise_density * c.nav.accel_noise_density / dt;
+        let time_constant = c.accel_smoothing_s;
+        self.smoothed = Some(match self.smoothed {
+            Some(prev) if time_constant > T::zero() => {
+                let alpha = T::one() - (-dt / time_constant).exp();
+                let keep = T::one() - alpha;
+                SmoothedAcceleration {
+                    ned_m_s2: prev.ned_m_s2 + (a - prev.ned_m_s2) * alpha,
+                    noise_variance: keep * keep * prev.noise_variance
+                        + alpha * alpha * sample_variance,
+                }
+            }
+            _ => SmoothedAcceleration {
+                ned_m_s2: a,
+                noise_variance: sample_variance,
+            },
+        });
+    }
+}
+
+/// The delayed GPS model of one block at the core's current state (see the
+/// module docs): `h`, `H` and the fix's noise plus the acceleration noise
+/// carried through `tau`.
+///
+/// The inputs: the measured rate and the body-frame specific force for
+/// which the model's `a` is the smoothed acceleration. Without a smoothed
+/// value yet (no IMU step since initialization) the last sample is used,
+/// with no noise counted; without any sample (a filter started from a
+/// state), a zero rate and the specific force of rest (`a = 0`).
+fn delayed_gps_model<T: Scalar>(
+    core: &NavCore<T, AUGMENTED_STATES>,
+    config: &Aekf17Config<T>,
+    smoothed: Option<SmoothedAcceleration<T>>,
+    block: GpsBlock,
+    m: &GpsMeasurement<T>,
+) -> GpsBlockModel<T, AUGMENTED_STATES> {
+    let x = core.state();
+    let nav = &config.nav;
+    let rot = rotation_matrix(&quaternion_of(x));
+    let g = Vector3::new(T::zero(), T::zero(), nav.gravity_m_s2);
+    let body_force = |a: &Vector3<T>| rot.transpose() * (a - g) + x.fixed_rows::<3>(ACCEL_BIAS);
+    let (gyro, accel, accel_variance) = match (core.last_imu(), smoothed) {
+        (Some(s), Some(a)) => (s.gyro_rad_s, body_force(&a.ned_m_s2), a.noise_variance),
+        (Some(s), None) => (s.gyro_rad_s, s.accel_m_s2, T::zero()),
+        (None, _) => (Vector3::zeros(), body_force(&Vector3::zeros()), T::zero()),
+    };
+    let tau = x[DELAY];
+    match block {
+        GpsBlock::Position => {
+            let (h, jac) =
+                measurement::delayed_gps_position(x, &accel, &nav.lever_arm_m, nav.gravity_m_s2);
+            let half_tau2 = tau * tau * T::lit(0.5);
+            let extra = accel_variance * half_tau2 * half_tau2;
+            (h, jac, m.position_noise + Matrix3::identity() * extra)
+        }
+        GpsBlock::Velocity => {
+            let (h, jac) = measurement::delayed_gps_velocity(
+                x,
+                &gyro,
+                &accel,
+                &nav.lever_arm_m,
+                nav.gravity_m_s2,
+            );
+            let extra = accel_variance * tau * tau;
+            (h, jac, m.velocity_noise + Matrix3::identity() * extra)
+        }
+    }
+}
+
+impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
+    fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        let before = self.core.time_us();
+        let result = self.core.push_imu(imu);
+        match (&result, before, self.core.time_us()) {
+            (Ok(()), Some(t0), Some(t1)) if self.core.is_initialized() && t1 > t0 => {
+                self.smooth_acceleration(us_to_s(t1 - t0));
+            }
+            // A gap: the low-pass restarts from the next sample.
+            (Err(Error::StepTooLong { .. }), ..) => self.smoothed = None,
+            _ => {}
+        }
+        result
+    }
+
+    /// Fuses the delayed position then the delayed velocity (eq. 11, see
+    /// [`measurement`]), each block gated on its own, `tau` kept in range
+    /// after each.
+    fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let (config, smoothed) = (&self.config, self.smoothed);
+        let clamps = &mut self.delay_clamps;
+        self.core.push_gps(
+            gps,
+            |core, block, m| delayed_gps_model(core, config, smoothed, block, m),
+            // Keep tau in [0, max_delay_s], P untouched (see the module docs).
+            |core| {
+                if core.clamp_extra_state(DELAY, T::zero(), config.max_delay_s) {
+                    *clamps = clamps.saturating_add(1);
+                }
+            },
+        )
+    }
+
+    fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
+        self.core.push_mag(mag)
+    }
+
+    /// The core's estimate with the delay and its standard deviation.
+    fn estimate(&self) -> Option<Estimate<T>> {
+        self.core.estimate().map(|e| Estimate {
+            delay_s: Some(self.delay_s()),
+            delay_std_s: Some(self.delay_std_s()),
+            ..e
+        })
+    }
+}
