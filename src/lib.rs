@@ -62,6 +62,7 @@ pub mod error;
 pub mod estimate;
 pub mod geo;
 pub mod kalman;
+pub mod nav;
 pub mod scalar;
 pub mod sensors;
 #[cfg(feature = "sim")]
@@ -72,6 +73,7 @@ pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, Senso
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
+pub use nav::{DelayCompensatedNav, DelayMode, NavConfig};
 pub use scalar::Scalar;
 pub use sensors::{Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 
