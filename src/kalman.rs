@@ -80,6 +80,30 @@ pub fn joseph_update<T: Scalar, const N: usize, const M: usize>(
     t_us: u64,
     measurement: &'static str,
 ) -> Result<FusionRecord<T, M>, Error> {
+    joseph_update_restricted(x, p, innovation, h, r, gate, t_us, measurement, None)
+}
+
+/// [`joseph_update`] with the gain restricted to `K' = C K` by a matrix `C`
+/// (`N x N`, `None`: no restriction), a "consider" (Schmidt) update.
+///
+/// `C` keeps the part of the correction a measurement may make; the
+/// directions it removes are not corrected but their uncertainty still
+/// enters `S` and, through `H`, the correlations that shape the gain. The
+/// Joseph form `(I - K'H) P (I - K'H)^T + K' R K'^T` is the exact
+/// covariance of the update for any gain, so `P` stays consistent: the
+/// states left alone keep their variance instead of shrinking.
+#[allow(clippy::too_many_arguments)]
+pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
+    x: &mut SVector<T, N>,
+    p: &mut SMatrix<T, N, N>,
+    innovation: &SVector<T, M>,
+    h: &SMatrix<T, M, N>,
+    r: &SMatrix<T, M, M>,
+    gate: T,
+    t_us: u64,
+    measurement: &'static str,
+    gain_restriction: Option<&SMatrix<T, N, N>>,
+) -> Result<FusionRecord<T, M>, Error> {
     let pht: SMatrix<T, N, M> = *p * h.transpose();
     let mut s: SMatrix<T, M, M> = h * pht + r;
     symmetrize(&mut s);
@@ -104,7 +128,10 @@ pub fn joseph_update<T: Scalar, const N: usize, const M: usize>(
         return Ok(record);
     }
     // K = P H^T S^-1  <=>  S K^T = H P (S symmetric).
-    let k: SMatrix<T, N, M> = chol.solve(&pht.transpose()).transpose();
+    let mut k: SMatrix<T, N, M> = chol.solve(&pht.transpose()).transpose();
+    if let Some(c) = gain_restriction {
+        k = c * k;
+    }
     let x_new = *x + k * innovation;
     let i_kh = SMatrix::<T, N, N>::identity() - k * h;
     let mut p_new = i_kh * *p * i_kh.transpose() + k * r * k.transpose();
@@ -117,4 +144,66 @@ pub fn joseph_update<T: Scalar, const N: usize, const M: usize>(
     *p = p_new;
     record.fused = true;
     Ok(record)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    /// Three states, a 1-D measurement of `x0 + x1`, state 1 correlated with 2.
+    fn restricted_update_leaves_the_excluded_state_and_its_variance<T: Scalar>(tol: f64) {
+        let p0 = Matrix3::new(
+            T::lit(2.0),
+            T::lit(0.3),
+            T::zero(),
+            T::lit(0.3),
+            T::lit(1.0),
+            T::lit(0.5),
+            T::zero(),
+            T::lit(0.5),
+            T::lit(1.5),
+        );
+        let h = SMatrix::<T, 1, 3>::new(T::one(), T::one(), T::zero());
+        let r = SMatrix::<T, 1, 1>::new(T::lit(0.4));
+        let y = SVector::<T, 1>::new(T::lit(0.7));
+        let run = |c: Option<&Matrix3<T>>| {
+            let (mut x, mut p) = (Vector3::<T>::zeros(), p0);
+            let rec = joseph_update_restricted(&mut x, &mut p, &y, &h, &r, T::lit(1e9), 0, "t", c)
+                .unwrap();
+            assert!(rec.fused);
+            (x, p)
+        };
+        // No restriction and the identity are the plain update.
+        let (x_plain, p_plain) = run(None);
+        let (x_id, p_id) = run(Some(&Matrix3::identity()));
+        let (mut x_ref, mut p_ref) = (Vector3::<T>::zeros(), p0);
+        joseph_update(&mut x_ref, &mut p_ref, &y, &h, &r, T::lit(1e9), 0, "t").unwrap();
+        assert_eq!((x_plain, p_plain), (x_ref, p_ref));
+        assert!((x_id - x_plain).amax().as_f64() < tol && (p_id - p_plain).amax().as_f64() < tol);
+        // Excluding state 1: it keeps its value and variance, the others
+        // still move, and the covariance is that of the applied gain.
+        let keep = Matrix3::from_diagonal(&Vector3::new(T::one(), T::zero(), T::one()));
+        let (x, p) = run(Some(&keep));
+        assert_eq!(x[1], T::zero());
+        assert!((p[(1, 1)] - p0[(1, 1)]).abs().as_f64() < tol);
+        assert!(x[0] != T::zero() && x[2] != T::zero());
+        let s = (h * p0 * h.transpose())[(0, 0)] + r[(0, 0)];
+        let k = keep * p0 * h.transpose() / s;
+        let i_kh = Matrix3::identity() - k * h;
+        let expected = i_kh * p0 * i_kh.transpose() + k * r * k.transpose();
+        assert!((p - expected).amax().as_f64() < tol);
+        // The restricted update is less informative than the optimal one.
+        assert!(p[(0, 0)] >= p_plain[(0, 0)] && p[(2, 2)] >= p_plain[(2, 2)]);
+    }
+
+    #[test]
+    fn restricted_update_f64() {
+        restricted_update_leaves_the_excluded_state_and_its_variance::<f64>(1e-12);
+    }
+
+    #[test]
+    fn restricted_update_f32() {
+        restricted_update_leaves_the_excluded_state_and_its_variance::<f32>(1e-5);
+    }
 }

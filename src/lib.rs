@@ -63,6 +63,7 @@ pub mod error;
 pub mod estimate;
 pub mod geo;
 pub mod kalman;
+pub mod nav;
 #[cfg(feature = "replay")]
 pub mod replay;
 pub mod scalar;
@@ -75,6 +76,7 @@ pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, Senso
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
+pub use nav::{DelayCompensatedNav, DelayMode, NavConfig};
 pub use scalar::Scalar;
 pub use sensors::{Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 

@@ -4,9 +4,6 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use common::{Event, Motion, Scenario};
 use delaynav::Imu;
 use delaynav::delay::{
@@ -16,26 +13,9 @@ use delaynav::delay::{
 use delaynav::scalar::Scalar;
 use nalgebra::{SVector, Vector3};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::allocations;
 
 fn per_sample_path_does_not_allocate<T: Scalar>() {
     let mut scenario = Scenario::simulator();
@@ -49,7 +29,7 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
         Box::new(DefaultCalibrator::<T>::new(CalibrationConfig::default()).unwrap());
     let v3 = |a: [f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
 
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocations();
     let mut updates = 0;
     for event in &events {
         match *event {
@@ -81,7 +61,7 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
         }
     }
     let calibration = calibrator.result().unwrap();
-    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let allocations = allocations() - before;
     assert!((calibration.delay_s.as_f64() - 0.2).abs() < 0.05);
     assert!(
         updates > 50,

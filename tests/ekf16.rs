@@ -6,7 +6,8 @@
 use delaynav::ekf16::state::{self, ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
 use delaynav::ekf16::{measurement, process};
 use delaynav::geo::{
-    euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix, wrap_pi,
+    euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix,
+    tilt_compensated_heading, wrap_pi,
 };
 use delaynav::{
     Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Gps, GpsOutcome, GpsPosition, Imu,
@@ -111,6 +112,42 @@ macro_rules! ekf16_tests {
                 let q = x.fixed_rows::<4>(QUAT).into_owned();
                 assert!((hq * q).amax().as_f64() < 10.0 * $round);
                 assert_eq!(h.columns(POS, NAV_STATES - POS).amax(), lit(0.0));
+            }
+
+            #[test]
+            fn tilt_coupled_mag_jacobian_is_that_of_the_heading_actually_measured() {
+                let x = sample_state::<T>();
+                let e = euler_from_quaternion(&state_quaternion(&x));
+                let (roll, pitch) = (e.x, e.y);
+                let decl = lit(DECLINATION);
+                let m_n = magnetic_field_ned(lit(INCLINATION), decl);
+                // What push_mag measures: the field the state predicts,
+                // de-rotated with the roll and pitch held at the estimate.
+                let measured = |x: &SVector<T, NAV_STATES>| {
+                    let m_b = rotation_matrix(&state_quaternion(x)).transpose() * m_n;
+                    let psi = tilt_compensated_heading(&m_b, roll, pitch, decl);
+                    measurement::mag_pseudo_measurement(roll, pitch, psi, &m_n)
+                };
+                let (h, jac) = measurement::mag_model_tilt_coupled(&x, roll, pitch, &m_n);
+                assert!((h - measured(&x)).amax() < lit(100.0 * $round));
+                let n = numeric_jacobian(&x, lit($step), measured);
+                let err = max_abs_diff(&jac, &n);
+                assert!(err < $jtol, "tilt-coupled mag H: {err}");
+                // Along a pure heading change it is the yaw-only Jacobian; along
+                // a tilt change it is not zero (about tan I per radian).
+                let q = state_quaternion(&x);
+                let (_, yaw_only) = measurement::mag_model(&x, roll, pitch, &m_n);
+                let hq = jac.fixed_view::<3, 4>(0, QUAT).into_owned();
+                let hq_yaw = yaw_only.fixed_view::<3, 4>(0, QUAT).into_owned();
+                let along_yaw = measurement::yaw_direction(&q);
+                assert!((hq * along_yaw - hq_yaw * along_yaw).amax() < lit(100.0 * $round));
+                let along_roll = state::euler_to_quaternion_jacobian(roll, pitch, e.z)
+                    .column(0)
+                    .into_owned();
+                let tilt_effect = (hq * along_roll).norm().as_f64();
+                let dh_dpsi = (hq_yaw * along_yaw).norm().as_f64();
+                assert!(tilt_effect > 0.3 * dh_dpsi, "{tilt_effect} vs {dh_dpsi}");
+                assert!((hq_yaw * along_roll).norm().as_f64() < 10.0 * $round);
             }
 
             fn state_quaternion(x: &SVector<T, NAV_STATES>) -> nalgebra::Quaternion<T> {
@@ -813,8 +850,13 @@ macro_rules! ekf16_tests {
                         lit(0.05),
                         lit(0.3),
                     ));
+                // The yaw-only ("consider") mode: roll and pitch stay put.
+                let yaw_only = Ekf16Config {
+                    mag_corrects_tilt: false,
+                    ..config()
+                };
                 let mut ekf =
-                    Ekf16::from_state_with_covariance(config(), 1_000, &start, &p).unwrap();
+                    Ekf16::from_state_with_covariance(yaw_only, 1_000, &start, &p).unwrap();
                 // The magnetometer sees the vehicle 20 deg further right.
                 let seen = quaternion_from_euler(roll, pitch, yaw + 0.35);
                 let m_b = rotation_matrix(seen.quaternion()).transpose()

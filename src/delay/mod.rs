@@ -81,7 +81,7 @@ pub mod fir;
 pub mod fractional_delay;
 pub mod gain_fusion;
 mod grid;
-mod ring;
+pub(crate) mod ring;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
 pub use correlation::{AxisPeak, PENDING_GPS_SAMPLES, SlidingCorrelator};

@@ -75,6 +75,20 @@ pub struct Ekf16Config<T: Scalar> {
     pub mag_declination_rad: T,
     /// Variance of each component of the unit-field pseudo-measurement.
     pub mag_noise_variance: T,
+    /// Whether a magnetometer sample may correct roll and pitch.
+    ///
+    /// The heading is computed from the field de-rotated with the
+    /// *estimated* roll and pitch, so with an inclined field it is wrong by
+    /// about `tan(I)` times the tilt error; the measurement Jacobian carries
+    /// that term in both modes (see
+    /// [`mag_model_tilt_coupled`](super::measurement::mag_model_tilt_coupled)).
+    /// `true` (default): the plain Kalman update, which also corrects roll
+    /// and pitch through that term. `false`: a "consider" update restricted
+    /// to yaw (the paper's stated intent, see
+    /// [`joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+    /// roll and pitch are not moved by the magnetometer, yet their
+    /// uncertainty is accounted for.
+    pub mag_corrects_tilt: bool,
 
     /// Chi-square gate on the NIS of the GPS position block (3 DOF).
     pub gps_position_gate: T,
@@ -131,6 +145,7 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             mag_inclination_rad: T::zero(),
             mag_declination_rad: T::zero(),
             mag_noise_variance: T::lit(TABLE3_MAG_VARIANCE),
+            mag_corrects_tilt: true,
             gps_position_gate: T::lit(GATE_5_SIGMA_3DOF),
             gps_velocity_gate: T::lit(GATE_5_SIGMA_3DOF),
             mag_gate: T::lit(GATE_5_SIGMA_3DOF),

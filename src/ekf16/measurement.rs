@@ -42,9 +42,9 @@
 //! sine and cosine of `I` there, measuring it from the vertical).
 //!
 //! Eq. (7) writes the model as `R(q)^T m_n`, whose Jacobian `H^m` would let
-//! the magnetometer pull roll and pitch. The model here holds `phi^`,
-//! `theta^` at the current estimate and lets only yaw depend on the state,
-//! which is what the paper's text asks of the pseudo-measurement:
+//! the raw field pull roll and pitch. The model here holds `phi^`,
+//! `theta^` at the current estimate and, as a first reading of the paper's
+//! text, lets only yaw depend on the state ([`mag_model`]):
 //!
 //! ```text
 //! h_m(x) = C_phi(phi^) C_theta(theta^) C_psi(psi(q)) m_n
@@ -52,15 +52,24 @@
 //! H_m    = [C_phi C_theta (dC_psi/dpsi) m_n] (dpsi/dq)      (3x4, rank one)
 //! ```
 //!
-//! so a magnetometer sample corrects yaw and not roll and pitch. The
-//! homogeneous form of `psi(q)` makes `dpsi/dq` orthogonal to `q`: the
-//! update does not change the quaternion's norm to first order.
+//! That Jacobian is wrong for the number actually fused: `psi_mag` is the
+//! heading of the field de-rotated with the *estimated* roll and pitch, so
+//! with an inclined field it is off by about `tan(I)` times the tilt error.
+//! The filter uses [`mag_model_tilt_coupled`], the Jacobian of
+//! `psi_mag(R(q)^T m_n; phi^, theta^)`, which equals the one above along a
+//! heading change and is not zero along a tilt change. Whether the update may
+//! then move roll and pitch is
+//! [`Ekf16Config::mag_corrects_tilt`](super::config::Ekf16Config::mag_corrects_tilt)
+//! (see `docs/math.md`, "Magnetometer"). The homogeneous form of `psi(q)`
+//! makes `dpsi/dq` orthogonal to `q`, and `psi_mag` does not change when the
+//! field is scaled: neither Jacobian changes the quaternion's norm to first
+//! order.
 
 use super::state::{GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, quaternion_of};
 use crate::ekf16::process::rotation_jacobian;
 use crate::geo::rotation_matrix;
 use crate::scalar::Scalar;
-use nalgebra::{Matrix3, Quaternion, RowVector4, SMatrix, Vector3};
+use nalgebra::{Matrix3, Quaternion, RowVector3, RowVector4, SMatrix, Vector3};
 
 /// Jacobian of a 3-D measurement with respect to the 16 navigation states.
 pub type MeasurementJacobian<T> = SMatrix<T, 3, NAV_STATES>;
@@ -163,7 +172,8 @@ pub fn mag_pseudo_measurement<T: Scalar>(
 }
 
 /// The magnetometer model `h_m(x)` with roll and pitch held at `roll`,
-/// `pitch` (the current estimate), and its rank-one Jacobian (yaw only).
+/// `pitch` (the current estimate), and its rank-one Jacobian through yaw
+/// only (not the one the filter fuses with: see [`mag_model_tilt_coupled`]).
 pub fn mag_model<T: Scalar>(
     x: &StateVector<T>,
     roll: T,
@@ -171,12 +181,87 @@ pub fn mag_model<T: Scalar>(
     field_ned: &Vector3<T>,
 ) -> (Vector3<T>, MeasurementJacobian<T>) {
     let q = quaternion_of(x);
-    let psi = heading(&q);
+    mag_model_with_heading_jacobian(&q, roll, pitch, field_ned, &heading_jacobian(&q))
+}
+
+/// `h_m` at the heading of `q` and the Jacobian `dh_m/dpsi dpsi_dq` for the
+/// given heading Jacobian `dpsi_dq` (1x4).
+fn mag_model_with_heading_jacobian<T: Scalar>(
+    q: &Quaternion<T>,
+    roll: T,
+    pitch: T,
+    field_ned: &Vector3<T>,
+    dpsi_dq: &RowVector4<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let psi = heading(q);
     let tilt = c_roll(roll) * c_pitch(pitch);
     let h = tilt * (c_yaw(psi) * field_ned);
     let dh_dpsi = tilt * (c_yaw_derivative(psi) * field_ned);
     let mut jac = MeasurementJacobian::zeros();
     jac.fixed_view_mut::<3, 4>(0, QUAT)
-        .copy_from(&(dh_dpsi * heading_jacobian(&q)));
+        .copy_from(&(dh_dpsi * dpsi_dq));
     (h, jac)
+}
+
+/// `d psi_mag / d m_b` (1x3): how the tilt-compensated heading
+/// ([`tilt_compensated_heading`](crate::geo::tilt_compensated_heading)) of a
+/// body field `m_b` moves with the field, roll and pitch held at `roll`, `pitch`.
+pub fn tilt_compensated_heading_gradient<T: Scalar>(
+    field_body: &Vector3<T>,
+    roll: T,
+    pitch: T,
+) -> RowVector3<T> {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let m = field_body;
+    let xh = cp * m.x + sp * (sr * m.y + cr * m.z);
+    let yh = cr * m.y - sr * m.z;
+    let dxh = RowVector3::new(cp, sp * sr, sp * cr);
+    let dyh = RowVector3::new(T::zero(), cr, -sr);
+    // psi = atan2(-yh, xh): d psi = (yh dxh - xh dyh) / (xh² + yh²).
+    (dxh * yh - dyh * xh) / (xh * xh + yh * yh)
+}
+
+/// `d(R(q)^T u)/dq` (3x4) for a fixed NED vector `u`: the body-frame
+/// reading of `u` as the attitude moves (`R(q)^T = R(q*)`).
+pub fn inverse_rotation_jacobian<T: Scalar>(q: &Quaternion<T>, u: &Vector3<T>) -> SMatrix<T, 3, 4> {
+    let mut j = rotation_jacobian(&q.conjugate(), u);
+    for c in 1..4 {
+        j.column_mut(c).neg_mut();
+    }
+    j
+}
+
+/// The magnetometer model of [`mag_model`] with the Jacobian of the heading
+/// the filter actually measures: `psi_mag(m_b, roll^, pitch^)` with the body
+/// field `m_b = R(q)^T m_n` and roll, pitch held at the estimate used to
+/// de-rotate it,
+///
+/// ```text
+/// H_m = [C_phi C_theta (dC_psi/dpsi) m_n] (d psi_mag/d m_b) d(R(q)^T m_n)/dq
+/// ```
+///
+/// Along a pure yaw change this equals [`mag_model`]'s `dpsi/dq`; along a
+/// tilt change it is not zero when the field is inclined: a heading
+/// computed with a wrong roll or pitch is wrong by about `tan(I)` times the
+/// tilt error. Ignoring that term (as [`mag_model`] does) makes the filter
+/// treat the tilt error it feeds in as information on yaw.
+pub fn mag_model_tilt_coupled<T: Scalar>(
+    x: &StateVector<T>,
+    roll: T,
+    pitch: T,
+    field_ned: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let field_body = rotation_matrix(&q).transpose() * field_ned;
+    let dpsi_dq = tilt_compensated_heading_gradient(&field_body, roll, pitch)
+        * inverse_rotation_jacobian(&q, field_ned);
+    mag_model_with_heading_jacobian(&q, roll, pitch, field_ned, &dpsi_dq)
+}
+
+/// `dq/dpsi` (4x1) of a pure heading change at fixed roll and pitch: the
+/// rotation about the NED down axis, `[0, 0, 0, 1/2] ⊗ q`.
+pub fn yaw_direction<T: Scalar>(q: &Quaternion<T>) -> nalgebra::Vector4<T> {
+    let half = T::lit(0.5);
+    nalgebra::Vector4::new(-q.k, -q.j, q.i, q.w) * half
 }

@@ -16,8 +16,12 @@
 //! - eq. (5): `P = A P A^T + Q` (the transpose is missing);
 //! - eq. (6): `C_psi(3,3) = 1` (printed 0), and `m_n = [cos I cos D, cos I sin D, sin I]`
 //!   with `I` measured down from horizontal;
-//! - eqs. (7)-(8): the magnetometer model holds roll and pitch fixed so it
-//!   corrects yaw only, as the text intends (see [`measurement`]);
+//! - eqs. (7)-(8): the magnetometer model holds roll and pitch at the
+//!   estimate, and its Jacobian carries the tilt error the heading inherits
+//!   from them (`tan(I)` per radian; a yaw-only Jacobian diverges with a fast
+//!   magnetometer); by default the update corrects tilt too, with
+//!   `mag_corrects_tilt = false` yaw only, as the text intends (see
+//!   [`measurement`]);
 //! - eq. (9): `K = P H^T (H P H^T + R)^-1` (printed `H^T P H^T`);
 //! - additions: Joseph-form update, chi-square gating, the GPS lever arm,
 //!   and the quaternion's covariance kept in the tangent space of the unit

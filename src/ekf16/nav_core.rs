@@ -658,8 +658,24 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         gate: T,
         measurement: &'static str,
     ) -> Result<FusionRecord<T, M>, Error> {
+        self.fuse_restricted(t_us, innovation, h, r, gate, measurement, None)
+    }
+
+    /// [`NavCore::fuse`] with the gain restricted to `C K`
+    /// ([`kalman::joseph_update_restricted`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn fuse_restricted<const M: usize>(
+        &mut self,
+        t_us: u64,
+        innovation: &SVector<T, M>,
+        h: &SMatrix<T, M, N>,
+        r: &SMatrix<T, M, M>,
+        gate: T,
+        measurement: &'static str,
+        gain_restriction: Option<&SMatrix<T, N, N>>,
+    ) -> Result<FusionRecord<T, M>, Error> {
         let (x_before, p_before) = (self.x, self.p);
-        let mut record = kalman::joseph_update(
+        let mut record = kalman::joseph_update_restricted(
             &mut self.x,
             &mut self.p,
             innovation,
@@ -668,6 +684,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gate,
             t_us,
             measurement,
+            gain_restriction,
         )
         .inspect_err(|_| bump(&mut self.refusals.not_positive_definite))?;
         if record.fused {
@@ -764,10 +781,27 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let heading_mag =
             tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad);
         let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);
-        let (hx, h16) = measurement::mag_model(&x16, roll, pitch, &field_ned);
+        let (hx, h16) = measurement::mag_model_tilt_coupled(&x16, roll, pitch, &field_ned);
         let r = Matrix3::identity() * c.mag_noise_variance;
         let gate = c.mag_gate;
-        let record = self.fuse(m.t_us, &(z - hx), &Self::widen(&h16), &r, gate, "mag")?;
+        // Yaw-only mode: the quaternion's correction keeps only its heading
+        // component, `dq/dpsi (dpsi/dq dq)`, a pure rotation about down.
+        let restriction = (!c.mag_corrects_tilt).then(|| {
+            let q = quaternion_of(&x16);
+            let mut keep = SMatrix::<T, N, N>::identity();
+            keep.fixed_view_mut::<4, 4>(QUAT, QUAT)
+                .copy_from(&(measurement::yaw_direction(&q) * measurement::heading_jacobian(&q)));
+            keep
+        });
+        let record = self.fuse_restricted(
+            m.t_us,
+            &(z - hx),
+            &Self::widen(&h16),
+            &r,
+            gate,
+            "mag",
+            restriction.as_ref(),
+        )?;
         self.mag_clock_us = Some(m.t_us);
         if !record.fused {
             bump(&mut self.refusals.mag_rejected);

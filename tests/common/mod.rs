@@ -3,6 +3,8 @@
 //! with a fixed seed.
 #![allow(dead_code)]
 
+pub mod flight;
+
 /// Knuth's MMIX linear congruential generator.
 pub struct Lcg(pub u64);
 
@@ -64,6 +66,16 @@ impl Motion {
             self.terms[i]
                 .iter()
                 .map(|&(a, w, p)| a * (w * t + p).sin())
+                .sum()
+        })
+    }
+
+    /// The double integral of `accel` (zero-mean sines).
+    pub fn position(&self, t: f64) -> [f64; 3] {
+        core::array::from_fn(|i| {
+            self.terms[i]
+                .iter()
+                .map(|&(a, w, p)| -a / (w * w) * (w * t + p).sin())
                 .sum()
         })
     }

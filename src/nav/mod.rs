@@ -1,0 +1,670 @@
+//! `DelayCompensatedNav`: the paper's method (sec. 2.2.2-2.2.4, Figure 1).
+//!
+//! The 16-state EKF runs at the *delayed horizon*, on IMU data delayed by
+//! the GPS delay, so IMU and GPS describe the same instant when a fix is
+//! fused; forward reckoning with the newest IMU samples brings the solution
+//! to the present; a separate loop estimates the delay by correlating the
+//! present acceleration with the GPS one.
+//!
+//! ```text
+//! IMU (t) ─► whitening FIR ─► history ─► Lagrange read at t - tau_a / t - tau_w ─► Ekf16 @ t_h ◄── GPS fix (received t, describes t - tau)
+//!   │                                                                                │ x(t_h)
+//!   └──────────── raw sample ─────────────► output predictor (forward.rs) ◄──────────┘ correction
+//!                                                  │ present q, r, v at t
+//!                        a_fwd(t) = R(q)(f - b_f) + [0, 0, g] ─► DelayLoop ◄── GPS velocity ─► tau
+//! ```
+//!
+//! # One IMU sample at time `t`
+//! 1. Whitening FIR on the accelerometer and the gyroscope (group delays
+//!    `D_f`, `D_w`; pass-through by default).
+//! 2. Both whitened streams go into one history (`FractionalDelayLine`,
+//!    `HIST` samples, cubic Lagrange).
+//! 3. Horizon. The delay of the GPS relative to the raw IMU is
+//!    `tau = tau_f + D_f` (the loop estimates `tau_f`, the delay relative to
+//!    the whitened accelerometer, because `a_fwd` is built from it; in fixed
+//!    mode `tau` is given). The horizon target is `t - tau` (integer µs). The
+//!    horizon EKF steps to `t_h` only when `t_h` is later than its own time:
+//!    a growing `tau` shortens steps or skips them, never rewinds; a
+//!    shrinking `tau` lengthens them, at most `max_horizon_step_ratio` IMU
+//!    steps per sample, so the horizon catches up smoothly. The sample it
+//!    steps with is read at the delays of eq. (15) measured from `t_h`: the
+//!    whitened accelerometer `t - t_h - D_f` behind the newest sample, the
+//!    whitened gyroscope `t - t_h - D_w` (with `t - t_h = tau` these are
+//!    `tau_f` and `tau_f + D_f - D_w`), stamped `t_h`: the instant the raw
+//!    sensors saw.
+//! 4. Forward reckoning: the present output state is propagated with the raw
+//!    sample, then corrected by the horizon EKF (below, and the derivation in
+//!    `src/nav/forward.rs` and `docs/nav.md`).
+//! 5. The delay loop gets `a_fwd(t) = R(q_present)(f_w - b_f) + [0, 0, g]`,
+//!    `f_w` the whitened accelerometer, stamped `t`.
+//!
+//! # GPS fix received at `t`
+//! It describes `t - tau`, which is the horizon: it is fused into the horizon
+//! EKF at once ([`GpsOutcome::Fused`]). A fix that arrives between IMU
+//! samples describes an instant up to one IMU step past the horizon; the
+//! horizon first steps there (one more EKF step, read from the history), so
+//! the fix is fused at its own instant. Its velocity goes to the delay loop,
+//! and the fusion's correction reaches the present through the output
+//! predictor.
+//!
+//! # Magnetometer
+//! Magnetometer samples are real time: the raw field at `t_m` matches the
+//! horizon when the horizon reaches `t_m` (eq. 15's `tau_m = tau_f + D_f`
+//! behind the present). They wait in a queue of [`MAG_QUEUE`] samples
+//! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
+//! time reaches theirs. A full queue drops its oldest sample
+//! ([`NavRefusals::mag_dropped`]).
+//!
+//! # Forward reckoning in `O(1)`
+//! The output predictor of PX4's EKF2, made exact to first order without
+//! touching its history: corrections are accumulated and each stored output
+//! state is kept in the frame of the corrections applied before it, so the
+//! correction still due at `t_h` costs a fixed number of operations
+//! whatever the delay. Per IMU sample: two FIR passes, two Lagrange reads
+//! (`2 x 4` taps), one EKF step, one `propagate` for the present, one
+//! interpolation between two ring entries, one delay-loop push. See
+//! [`NavWork`] and the test that compares the counted work at two delays.
+//!
+//! # Initialization
+//! The horizon EKF initializes as [`Ekf16`] does, from delayed IMU samples
+//! and then a GPS fix. The output state starts from the horizon state at that
+//! moment; the present estimate is `None` until the horizon has reached the
+//! first stored output state (one delay later) and corrected it.
+//!
+//! # Fixed mode
+//! [`DelayMode::Fixed`] is the same type with the loop off and `tau` given:
+//! for receivers whose latency is calibrated, and, run with the simulator's
+//! true delay, the `oracle` row of the `reproduce` harness.
+//!
+//! # Memory
+//! `HIST` (default 1100) must hold the largest delay plus the FIR group delay
+//! and the Lagrange stencil at the IMU rate ([`DelayCompensatedNav::new`]
+//! checks it): at 1 kHz and the default 1 s range, about 1030. Per sample of
+//! `HIST`: the history 6 values, the output ring 10 values and a `u64`, so
+//! `HIST x (16 x 4 + 8) = 72` bytes in `f32` (79 KB at 1100) and
+//! `HIST x (16 x 8 + 8)` = 136 bytes in `f64` (150 KB), plus the delay loop
+//! and the EKF (see `docs/nav.md` for measured totals). At 200 Hz a
+//! `HIST` of 256 covers a 1 s delay range.
+
+pub mod config;
+mod forward;
+
+pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
+
+use crate::delay::ring::Ring;
+use crate::delay::{
+    DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SamplePeriod,
+    SensorDelays, WhiteningFir,
+};
+use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, POS, VEL, quaternion_of};
+use crate::ekf16::{Ekf16, RefusalCounters};
+use crate::error::Error;
+use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
+use crate::geo::rotation_matrix;
+use crate::scalar::{Scalar, us_to_s};
+use crate::sensors::{
+    GpsFix, Imu, ImuSample, Mag, MagSample, check_time, checked_gps, checked_imu, checked_mag,
+};
+use forward::ForwardReckoner;
+use nalgebra::{SVector, UnitQuaternion, Vector3};
+
+/// Lagrange order of the IMU history reads (cubic).
+pub const HISTORY_ORDER: usize = 3;
+
+/// Magnetometer samples waiting for the horizon.
+pub const MAG_QUEUE: usize = 128;
+
+/// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
+pub const DEFAULT_HISTORY: usize = 1100;
+
+/// Relative margin on the IMU rate when checking the history size.
+const RATE_MARGIN: f64 = 1.02;
+
+/// Samples refused or dropped by the navigator itself (the horizon EKF's own
+/// counters are in [`DelayCompensatedNav::ekf_refusals`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct NavRefusals {
+    /// IMU samples with a non-finite value.
+    pub imu_non_finite: u32,
+    /// IMU samples above the EKF's plausible range.
+    pub imu_out_of_range: u32,
+    /// IMU samples duplicated or going back in time.
+    pub imu_time: u32,
+    /// IMU gaps longer than the EKF's `max_imu_step_us` (history restarted).
+    pub imu_gap: u32,
+    /// GPS fixes with a non-finite or implausible value.
+    pub gps_invalid: u32,
+    /// GPS fixes duplicated or going back in time.
+    pub gps_time: u32,
+    /// Magnetometer samples with a non-finite or zero field.
+    pub mag_invalid: u32,
+    /// Magnetometer samples duplicated or going back in time.
+    pub mag_time: u32,
+    /// Magnetometer samples dropped from a full queue.
+    pub mag_dropped: u32,
+    /// Horizon steps the EKF refused (e.g. a step longer than its maximum).
+    pub horizon_refused: u32,
+    /// Samples the delay loop refused.
+    pub delay_loop_refused: u32,
+}
+
+/// Work done so far, counted (the cost per sample must not grow with the delay).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct NavWork {
+    /// IMU samples accepted.
+    pub imu_samples: u64,
+    /// Horizon EKF steps.
+    pub horizon_steps: u64,
+    /// `process::propagate` calls of the output predictor.
+    pub forward_propagations: u64,
+    /// Stored samples combined by the Lagrange reads of the history.
+    pub interpolation_taps: u64,
+    /// Moves of the output ring's cursor.
+    pub ring_cursor_moves: u64,
+    /// Products of the delay loop's sliding correlation.
+    pub correlation_multiply_adds: u64,
+}
+
+fn bump(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
+
+/// Either a whitening FIR or nothing.
+#[derive(Debug, Clone)]
+struct Whitening<T: Scalar> {
+    fir: Option<WhiteningFir<T, WHITENING_TAPS>>,
+    group_delay_s: T,
+}
+
+impl<T: Scalar> Whitening<T> {
+    fn new(filter: WhiteningFilter<T>, rate_hz: T) -> Result<Self, Error> {
+        Ok(Self {
+            fir: match filter {
+                WhiteningFilter::PassThrough => None,
+                WhiteningFilter::LowPass { cutoff_hz } => {
+                    Some(WhiteningFir::low_pass(cutoff_hz, rate_hz)?)
+                }
+            },
+            group_delay_s: filter.group_delay_s(rate_hz),
+        })
+    }
+
+    fn filter(&mut self, x: Vector3<T>) -> Vector3<T> {
+        match &mut self.fir {
+            // The input was checked finite: the filter cannot refuse it.
+            Some(fir) => fir.filter(x).unwrap_or(x),
+            None => x,
+        }
+    }
+
+    fn reset(&mut self) {
+        if let Some(fir) = &mut self.fir {
+            fir.reset();
+        }
+    }
+}
+
+/// The delay-compensated GPS/IMU navigator of the paper (Figure 1); see the
+/// module docs. `HIST` is the IMU history in samples.
+///
+/// ```
+/// use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+/// use delaynav::{Gps, GpsPosition, Imu, Navigator};
+/// use nalgebra::Vector3;
+///
+/// // At rest at 100 Hz; the GPS is 0.1 s late (a calibrated receiver).
+/// let mut config = NavConfig::<f64>::default();
+/// config.imu_rate_hz = 100.0;
+/// config.mode = DelayMode::Fixed { delay_s: 0.1 };
+/// let mut nav = DelayCompensatedNav::<f64, 128>::new(config)?;
+/// for k in 1..=300u64 {
+///     let t_us = k * 10_000;
+///     nav.push_imu(&Imu { t_us, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.80665) })?;
+///     if k % 10 == 0 {
+///         let fix = Gps {
+///             t_us,
+///             position: GpsPosition::Ned(Vector3::new(1.0, 2.0, 0.0)),
+///             velocity_ned_m_s: Vector3::zeros(),
+///             horizontal_accuracy_m: None,
+///             vertical_accuracy_m: None,
+///             speed_accuracy_m_s: None,
+///         };
+///         nav.push_gps(&fix)?;
+///     }
+/// }
+/// let now = nav.estimate().expect("initialized");
+/// let horizon = nav.horizon_estimate().expect("initialized");
+/// assert_eq!(now.t_us, 3_000_000);
+/// assert_eq!(horizon.t_us, 2_900_000);
+/// assert!((now.position_ned_m - Vector3::new(1.0, 2.0, 0.0)).norm() < 0.1);
+/// # Ok::<(), delaynav::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
+    config: NavConfig<T>,
+    ekf: Ekf16<T>,
+    delay_loop: DefaultDelayLoop<T>,
+    accel_whitening: Whitening<T>,
+    gyro_whitening: Whitening<T>,
+    /// Whitened accelerometer (0..3) and gyroscope (3..6).
+    history: FractionalDelayLine<T, 6, HIST, HISTORY_ORDER>,
+    period: SamplePeriod,
+    forward: ForwardReckoner<T, HIST>,
+    mags: Ring<Mag<T>, MAG_QUEUE>,
+    last_imu: Option<Imu<T>>,
+    last_gps_us: Option<u64>,
+    last_mag_us: Option<u64>,
+    last_update: Option<DelayUpdate<T>>,
+    present_accel: Vector3<T>,
+    refusals: NavRefusals,
+    imu_samples: u64,
+    horizon_steps: u64,
+}
+
+impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
+    /// A navigator for a validated configuration whose delay range fits the
+    /// history `HIST` at `imu_rate_hz` (with a 2 % rate margin).
+    pub fn new(config: NavConfig<T>) -> Result<Self, Error> {
+        config.validate()?;
+        let accel_whitening = Whitening::new(config.accel_whitening, config.imu_rate_hz)?;
+        let gyro_whitening = Whitening::new(config.gyro_whitening, config.imu_rate_hz)?;
+        let longest_s = config.delay_loop.fusion.delay_max_s
+            + accel_whitening
+                .group_delay_s
+                .max(gyro_whitening.group_delay_s);
+        let needed = (longest_s * config.imu_rate_hz * T::lit(RATE_MARGIN))
+            .ceil()
+            .as_f64()
+            + (HISTORY_ORDER + 2) as f64;
+        if needed > HIST as f64 {
+            return Err(Error::InvalidConfig {
+                field: "HIST",
+                reason: "history too short for the largest delay at the IMU rate",
+            });
+        }
+        Ok(Self {
+            config,
+            ekf: Ekf16::new(config.ekf)?,
+            delay_loop: DefaultDelayLoop::new(config.loop_config())?,
+            accel_whitening,
+            gyro_whitening,
+            history: FractionalDelayLine::new(),
+            period: SamplePeriod::new(),
+            forward: ForwardReckoner::new(),
+            mags: Ring::new(Mag {
+                t_us: 0,
+                field_body: Vector3::zeros(),
+            }),
+            last_imu: None,
+            last_gps_us: None,
+            last_mag_us: None,
+            last_update: None,
+            present_accel: Vector3::zeros(),
+            refusals: NavRefusals::default(),
+            imu_samples: 0,
+            horizon_steps: 0,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &NavConfig<T> {
+        &self.config
+    }
+
+    /// The horizon EKF.
+    pub fn horizon_filter(&self) -> &Ekf16<T> {
+        &self.ekf
+    }
+
+    /// The delay loop (idle in fixed mode).
+    pub fn delay_loop(&self) -> &DefaultDelayLoop<T> {
+        &self.delay_loop
+    }
+
+    /// Group delays `(D_f, D_w)` of the whitening filters, s.
+    pub fn group_delays_s(&self) -> (T, T) {
+        (
+            self.accel_whitening.group_delay_s,
+            self.gyro_whitening.group_delay_s,
+        )
+    }
+
+    /// The GPS delay relative to the raw IMU, `tau = tau_f + D_f`, s: the
+    /// estimate, or the given delay in fixed mode.
+    pub fn delay_s(&self) -> T {
+        match self.config.mode {
+            DelayMode::Estimated { .. } => {
+                self.delay_loop.delay_s() + self.accel_whitening.group_delay_s
+            }
+            DelayMode::Fixed { delay_s } => delay_s,
+        }
+    }
+
+    /// Standard deviation of the delay, s (0 in fixed mode).
+    pub fn delay_std_s(&self) -> T {
+        match self.config.mode {
+            DelayMode::Estimated { .. } => self.delay_loop.delay_std_s(),
+            DelayMode::Fixed { .. } => T::zero(),
+        }
+    }
+
+    /// Eq. (15): the delays applied to the whitened accelerometer, the
+    /// whitened gyroscope and the raw magnetometer, s.
+    pub fn sensor_delays(&self) -> SensorDelays<T> {
+        let (d_f, d_w) = self.group_delays_s();
+        SensorDelays::new(self.delay_s() - d_f, d_f, d_w)
+    }
+
+    /// The last delay update: validity per axis, correlation peaks,
+    /// measurements and gains (`None` before the first, and in fixed mode).
+    pub fn last_delay_update(&self) -> Option<&DelayUpdate<T>> {
+        self.last_update.as_ref()
+    }
+
+    /// The solution at the delayed horizon (the EKF's), `None` until initialized.
+    pub fn horizon_estimate(&self) -> Option<Estimate<T>> {
+        self.ekf.estimate().map(|e| self.with_delay(e))
+    }
+
+    /// NED acceleration at the present, `R(q)(f - b_f) + [0, 0, g]` from the
+    /// newest raw sample, m/s^2 (`None` until the present estimate exists).
+    pub fn acceleration_ned_m_s2(&self) -> Option<Vector3<T>> {
+        self.forward.is_ready().then_some(self.present_accel)
+    }
+
+    /// Samples refused or dropped by the navigator.
+    pub fn refusals(&self) -> NavRefusals {
+        self.refusals
+    }
+
+    /// The horizon EKF's refusal and gating counters.
+    pub fn ekf_refusals(&self) -> RefusalCounters {
+        self.ekf.refusals()
+    }
+
+    /// Work counters.
+    pub fn work(&self) -> NavWork {
+        NavWork {
+            imu_samples: self.imu_samples,
+            horizon_steps: self.horizon_steps,
+            forward_propagations: self.forward.propagations(),
+            interpolation_taps: self.history.taps_read(),
+            ring_cursor_moves: self.forward.cursor_moves(),
+            correlation_multiply_adds: self.delay_loop.multiply_adds(),
+        }
+    }
+
+    /// Magnetometer samples waiting for the horizon.
+    pub fn queued_mag_samples(&self) -> usize {
+        self.mags.len()
+    }
+
+    fn with_delay(&self, mut e: Estimate<T>) -> Estimate<T> {
+        e.delay_s = Some(self.delay_s());
+        e.delay_std_s = Some(self.delay_std_s());
+        e
+    }
+
+    /// `tau` in whole microseconds.
+    fn delay_us(&self) -> u64 {
+        (self.delay_s() * T::lit(1e6)).round().as_f64().max(0.0) as u64
+    }
+
+    fn is_estimating(&self) -> bool {
+        matches!(self.config.mode, DelayMode::Estimated { .. })
+    }
+
+    /// The horizon time for the present `t_us`, or `None` when the horizon
+    /// does not move (or cannot be read yet).
+    fn horizon_target(&self, t_us: u64, dt_us: u64, period_s: T) -> Option<u64> {
+        let target = t_us.checked_sub(self.delay_us())?;
+        let readable_us = self
+            .history
+            .max_delay_samples()
+            .map(|n| (T::lit(n.saturating_sub(1) as f64) * period_s * T::lit(1e6)).as_f64())?;
+        let Some(horizon) = self.ekf.time_us() else {
+            return Some(target);
+        };
+        if target <= horizon {
+            return None;
+        }
+        let max_step = (self.config.max_horizon_step_ratio * T::lit(dt_us as f64))
+            .as_f64()
+            .max(1.0) as u64;
+        let capped = target.min(horizon.saturating_add(max_step));
+        // After a gap the history restarted: the capped horizon is no longer
+        // readable, jump to the target (the EKF grows P over the gap).
+        if ((t_us - capped) as f64) > readable_us {
+            Some(target)
+        } else {
+            Some(capped)
+        }
+    }
+
+    /// Steps the horizon EKF to `t_h` with the history read at eq. (15)'s delays.
+    fn step_horizon(&mut self, t_us: u64, t_h: u64, period_s: T) {
+        let back_s: T = us_to_s(t_us - t_h);
+        let (d_f, d_w) = self.group_delays_s();
+        let read = |delay_s: T| self.history.read_seconds(delay_s.max(T::zero()), period_s);
+        let (Ok(a), Ok(w)) = (read(back_s - d_f), read(back_s - d_w)) else {
+            return;
+        };
+        let sample = Imu {
+            t_us: t_h,
+            gyro_rad_s: w.fixed_rows::<3>(3).into_owned(),
+            accel_m_s2: a.fixed_rows::<3>(0).into_owned(),
+        };
+        match self.ekf.push_imu(&sample) {
+            Ok(()) => self.horizon_steps += 1,
+            Err(_) => bump(&mut self.refusals.horizon_refused),
+        }
+    }
+
+    /// Steps the horizon to the instant a fix received at `t_fix` describes,
+    /// `t_fix - tau`, when that lies between the horizon and the newest IMU
+    /// sample's horizon target (a fix arriving between IMU samples): the fix
+    /// is then fused at its own instant, not up to one IMU step early.
+    fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
+        let (Some(last), Some(horizon), Some(period_s)) = (
+            self.last_imu,
+            self.ekf.time_us(),
+            self.period.period_s::<T>(),
+        ) else {
+            return;
+        };
+        let Some(target) = t_fix_us.checked_sub(self.delay_us()) else {
+            return;
+        };
+        if target > horizon && target <= last.t_us {
+            self.step_horizon(last.t_us, target, period_s);
+            self.drain_mags();
+        }
+    }
+
+    /// Fuses the queued magnetometer samples the horizon has reached.
+    fn drain_mags(&mut self) {
+        let Some(horizon) = self.ekf.time_us() else {
+            return;
+        };
+        while let Some(m) = self.mags.oldest() {
+            if m.t_us > horizon {
+                break;
+            }
+            self.mags.pop_oldest();
+            // Refusals (gate, time) are counted by the EKF.
+            let _ = self.ekf.push_mag(&m);
+        }
+    }
+
+    /// Brings the horizon state to the present (starts the output state on
+    /// the first call after the EKF initialized).
+    fn correct_present(&mut self) {
+        let (Some(t_h), Some(last)) = (self.ekf.time_us(), self.last_imu) else {
+            return;
+        };
+        if !self.ekf.is_initialized() {
+            return;
+        }
+        let x_h = *self.ekf.state_vector();
+        if !self.forward.is_started() {
+            self.forward
+                .start(&x_h, last.t_us, &last.gyro_rad_s, &last.accel_m_s2);
+        }
+        self.forward.correct(t_h, &x_h);
+    }
+
+    fn check_imu(&mut self, imu: &(impl ImuSample<T> + ?Sized)) -> Result<Imu<T>, Error> {
+        let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
+        let c = &self.config.ekf;
+        if s.gyro_rad_s.iter().any(|v| v.abs() > c.max_gyro_rad_s)
+            || s.accel_m_s2.iter().any(|v| v.abs() > c.max_accel_m_s2)
+        {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu",
+                reason: "above the configured max_gyro_rad_s or max_accel_m_s2",
+            });
+        }
+        check_time("imu", self.last_imu.map(|p| p.t_us), s.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.imu_time))?;
+        Ok(s)
+    }
+}
+
+impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST> {
+    /// One IMU sample through the five steps of the module docs. Refused,
+    /// state unchanged: non-finite, implausible, not later than the previous
+    /// sample. A gap longer than the EKF's `max_imu_step_us` restarts the
+    /// history and returns [`Error::StepTooLong`] after keeping the sample.
+    fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        let s = self.check_imu(imu)?;
+        let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
+        let max_step = self.config.ekf.max_imu_step_us;
+        let gap = dt_us > max_step;
+        if gap {
+            bump(&mut self.refusals.imu_gap);
+            self.history.clear();
+            self.period.reset();
+            self.accel_whitening.reset();
+            self.gyro_whitening.reset();
+        }
+        let accel = self.accel_whitening.filter(s.accel_m_s2);
+        let gyro = self.gyro_whitening.filter(s.gyro_rad_s);
+        let mut channels = SVector::<T, 6>::zeros();
+        channels.fixed_rows_mut::<3>(0).copy_from(&accel);
+        channels.fixed_rows_mut::<3>(3).copy_from(&gyro);
+        // Finite by the checks above: the line cannot refuse it.
+        let _ = self.history.push(channels);
+        let _ = self.period.push(s.t_us);
+        self.imu_samples += 1;
+
+        if self.forward.is_started() {
+            if gap {
+                self.forward.hold(s.t_us, &s.gyro_rad_s, &s.accel_m_s2);
+            } else {
+                let g = self.config.ekf.gravity_m_s2;
+                self.forward.step(s.t_us, &s.gyro_rad_s, &s.accel_m_s2, g);
+            }
+        }
+        self.last_imu = Some(s);
+
+        if let Some(period_s) = self.period.period_s::<T>()
+            && let Some(t_h) = self.horizon_target(s.t_us, dt_us, period_s)
+        {
+            self.step_horizon(s.t_us, t_h, period_s);
+            self.drain_mags();
+            self.correct_present();
+        }
+
+        if self.forward.is_started() {
+            let (x, _) = self.forward.state();
+            let rot = rotation_matrix(&quaternion_of(x));
+            let bias = x.fixed_rows::<3>(ACCEL_BIAS).into_owned();
+            let gravity = Vector3::new(T::zero(), T::zero(), self.config.ekf.gravity_m_s2);
+            self.present_accel = rot * (s.accel_m_s2 - bias) + gravity;
+            if self.is_estimating() {
+                let a_fwd = rot * (accel - bias) + gravity;
+                if self.delay_loop.push_imu(s.t_us, a_fwd).is_err() {
+                    bump(&mut self.refusals.delay_loop_refused);
+                }
+            }
+        }
+        if gap {
+            return Err(Error::StepTooLong {
+                dt_us,
+                max_us: max_step,
+            });
+        }
+        Ok(())
+    }
+
+    /// Fuses the fix at the horizon at once and gives its velocity to the
+    /// delay loop (module docs). Refused, state unchanged: invalid values,
+    /// a velocity beyond the loop's plausible range, time not increasing.
+    fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
+        check_time("gps", self.last_gps_us, fix.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
+        if fix
+            .velocity_ned_m_s
+            .iter()
+            .any(|v| v.abs() > T::lit(MAX_INPUT_MAGNITUDE))
+        {
+            bump(&mut self.refusals.gps_invalid);
+            return Err(Error::OutOfRange {
+                field: "gps.velocity",
+                reason: "beyond the plausible range",
+            });
+        }
+        self.advance_horizon_to_fix(fix.t_us);
+        let outcome = self.ekf.push_gps(&fix)?;
+        self.last_gps_us = Some(fix.t_us);
+        if self.is_estimating() {
+            match self.delay_loop.push_gps(fix.t_us, fix.velocity_ned_m_s) {
+                Ok(Some(update)) => self.last_update = Some(update),
+                Ok(None) => {}
+                Err(_) => bump(&mut self.refusals.delay_loop_refused),
+            }
+        }
+        if matches!(outcome, GpsOutcome::Initialized | GpsOutcome::Fused { .. }) {
+            self.correct_present();
+        }
+        Ok(outcome)
+    }
+
+    /// Queues the sample until the horizon reaches its time (module docs).
+    /// Refused, state unchanged: non-finite or zero field, time not increasing.
+    fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
+        let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
+        check_time("mag", self.last_mag_us, m.t_us)
+            .inspect_err(|_| bump(&mut self.refusals.mag_time))?;
+        if self.mags.len() == MAG_QUEUE {
+            bump(&mut self.refusals.mag_dropped);
+        }
+        self.mags.push(m);
+        self.last_mag_us = Some(m.t_us);
+        Ok(MagOutcome::Queued)
+    }
+
+    /// The present solution: attitude, position and velocity at the newest
+    /// IMU sample; biases and covariance are the horizon EKF's. `None` until
+    /// the first correction has reached the present (module docs).
+    fn estimate(&self) -> Option<Estimate<T>> {
+        if !self.forward.is_ready() {
+            return None;
+        }
+        let horizon = self.ekf.estimate()?;
+        let (x, t_us) = self.forward.state();
+        Some(self.with_delay(Estimate {
+            t_us,
+            attitude: UnitQuaternion::new_normalize(quaternion_of(x)),
+            position_ned_m: x.fixed_rows::<3>(POS).into_owned(),
+            velocity_ned_m_s: x.fixed_rows::<3>(VEL).into_owned(),
+            accel_bias_m_s2: x.fixed_rows::<3>(ACCEL_BIAS).into_owned(),
+            gyro_bias_rad_s: x.fixed_rows::<3>(GYRO_BIAS).into_owned(),
+            ..horizon
+        }))
+    }
+}
