@@ -969,9 +969,16 @@ fn run_every_estimator(
         mag_declination_rad: declination,
         ..delaynav::Ekf16Config::default()
     };
+    let proposed = delaynav::NavConfig {
+        ekf: ekf16,
+        imu_rate_hz: 50.0, // log171's IMU rate
+        ..delaynav::NavConfig::default()
+    };
+    let proposed = delaynav::DelayCompensatedNav::<f64>::new(proposed).unwrap();
     let aekf17 = delaynav::AugmentedEkf17::new(delaynav::Aekf17Config::with_nav(ekf16)).unwrap();
     let ekf16 = delaynav::Ekf16::new(ekf16).unwrap();
     vec![
+        ("proposed", run_on(proposed, &files, reader, options)),
         ("aekf17", run_on(aekf17, &files, reader, options)),
         ("ekf16", run_on(ekf16, &files, reader, options)),
     ]
@@ -1031,8 +1038,11 @@ fn every_estimator_replays_the_flight_window_cleanly() {
 #[test]
 fn added_gps_delay_experiment() {
     // The paper's Table 7 on log171: 0.3 s added to every GPS receive time.
-    // An estimator with a delay estimate must see it grow by about 0.3 s;
-    // one without must get worse (it fuses fixes 0.3 s staler).
+    // The crate's method must see its delay estimate grow by 0.3 s (within
+    // 0.1 s; the paper's flight: +0.297 s). The augmented baseline must move
+    // the right way (the paper's AEKF: +0.258 s; its change is printed).
+    // An estimator without a delay estimate must get a larger tilt error:
+    // it fuses fixes 0.3 s staler.
     let Some(dir) = log171() else { return };
     let plain = run_every_estimator(&dir, &ReaderOptions::default(), &flight_window());
     let added = ReaderOptions {
@@ -1051,9 +1061,14 @@ fn added_gps_delay_experiment() {
         match (a.final_delay_s, b.final_delay_s) {
             (Some(da), Some(db)) => {
                 let change = db - da;
+                let expected = if *name == "proposed" {
+                    0.2..0.4
+                } else {
+                    0.05..0.45
+                };
                 assert!(
-                    (0.15..0.45).contains(&change),
-                    "{name}: delay change {change} s for 0.3 s added"
+                    expected.contains(&change),
+                    "{name}: delay change {change} s for 0.3 s added, expected {expected:?}"
                 );
             }
             _ => assert!(

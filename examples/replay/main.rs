@@ -19,7 +19,10 @@ use delaynav::replay::{
     ReferenceAlignment, ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
     inclination_at_rest, replay,
 };
-use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Estimate, Navigator};
+use delaynav::{
+    Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
+    Navigator,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use std::error::Error;
@@ -89,6 +92,23 @@ struct Registered {
 }
 
 const ESTIMATORS: &[Registered] = &[
+    Registered {
+        name: "proposed",
+        about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
+        run: |setup, out| {
+            let config = NavConfig {
+                ekf: setup.ekf16_config(),
+                imu_rate_hz: setup.imu_rate_hz,
+                ..NavConfig::default()
+            };
+            run_one(
+                setup,
+                out,
+                "proposed",
+                &mut DelayCompensatedNav::<f64>::new(config)?,
+            )
+        },
+    },
     Registered {
         name: "aekf17",
         about: "17-state augmented EKF with the delay as a state (the paper's baseline)",
