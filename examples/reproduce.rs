@@ -24,6 +24,7 @@
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
+use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
 use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
 use delaynav::sim::{
@@ -82,6 +83,10 @@ struct Args {
     /// Also write each scenario's first-seed run as a CSV log under DIR/<scenario>-seed<S>/.
     #[arg(long, value_name = "DIR")]
     csv: Option<PathBuf>,
+    /// Start `proposed` and `aekf17` from the fixed 0.1 s instead of an
+    /// offline calibration on a separate run (sec. 2.2.2).
+    #[arg(long)]
+    no_calibration: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -90,6 +95,52 @@ struct RunSetup {
     events: Vec<SimEvent>,
     skip_us: u64,
     keep_trace: bool,
+    /// Where `proposed` and `aekf17` start their delay estimate.
+    start: DelayStart,
+}
+
+/// The initial delay of the estimators that estimate it.
+#[derive(Debug, Clone, Copy)]
+struct DelayStart {
+    delay_s: f64,
+    /// Initial standard deviation, s; `None` keeps each estimator's default.
+    std_s: Option<f64>,
+}
+
+/// The uncalibrated start: 100 ms below the default true delay.
+const UNCALIBRATED_START: DelayStart = DelayStart {
+    delay_s: 0.1,
+    std_s: None,
+};
+
+/// Seed offset of the calibration run of each seed.
+const CALIBRATION_SEED_OFFSET: u64 = 10_000;
+
+/// Offline calibration (sec. 2.2.2) on a separate simulated run with the
+/// same sensors and true delay: IMU-only attitude, correlation over +-6 s.
+/// The initial standard deviation is one correlation grid sample.
+fn calibrate(config: &SimConfig) -> DelayStart {
+    let cal_config = CalibrationConfig::<f64>::default();
+    let mut calibrator =
+        Box::new(DefaultCalibrator::<f64>::new(cal_config).expect("valid calibration config"));
+    let events: Vec<SimEvent> = Simulation::new(config.clone())
+        .expect("valid calibration run")
+        .collect();
+    let imu = events.iter().filter_map(|e| match e {
+        SimEvent::Imu { sample, .. } => Some(*sample),
+        _ => None,
+    });
+    let gps = events.iter().filter_map(|e| match e {
+        SimEvent::Gps { fix, .. } => Some(*fix),
+        _ => None,
+    });
+    match calibrator.calibrate(imu, gps) {
+        Ok(c) => DelayStart {
+            delay_s: c.delay_s.clamp(0.0, 1.0),
+            std_s: Some(1.0 / cal_config.correlation_rate_hz),
+        },
+        Err(_) => UNCALIBRATED_START,
+    }
 }
 
 /// Time series of one estimator on one run, for the plots.
@@ -144,11 +195,12 @@ fn estimators() -> Vec<Estimator> {
         Estimator {
             name: "aekf17",
             run: |s| {
-                score(
-                    AugmentedEkf17::new(Aekf17Config::with_nav(ekf16_config(&s.config)))
-                        .expect("valid Aekf17 config"),
-                    s,
-                )
+                let mut config = Aekf17Config::with_nav(ekf16_config(&s.config));
+                config.initial_delay_s = s.start.delay_s;
+                if let Some(std) = s.start.std_s {
+                    config.initial_delay_std_s = std;
+                }
+                score(AugmentedEkf17::new(config).expect("valid Aekf17 config"), s)
             },
         },
         Estimator {
@@ -158,8 +210,9 @@ fn estimators() -> Vec<Estimator> {
                     nav(
                         &s.config,
                         DelayMode::Estimated {
-                            initial_s: PROPOSED_INITIAL_DELAY_S,
+                            initial_s: s.start.delay_s,
                         },
+                        s.start.std_s,
                     ),
                     s,
                 )
@@ -174,6 +227,7 @@ fn estimators() -> Vec<Estimator> {
                         DelayMode::Fixed {
                             delay_s: s.config.delay.initial_s,
                         },
+                        None,
                     ),
                     s,
                 )
@@ -182,20 +236,23 @@ fn estimators() -> Vec<Estimator> {
     ]
 }
 
-/// Initial delay of the `proposed` row, s: the start of `aekf17`
-/// (100 ms below the default true delay), standing in for the rough
-/// offline calibration the paper starts from (sec. 2.2.2).
-const PROPOSED_INITIAL_DELAY_S: f64 = 0.1;
-
 /// The delay-compensated navigator on the same EKF configuration as `ekf16`:
-/// `proposed` estimates the delay, `oracle` is given the true (constant) one.
-fn nav(sim: &SimConfig, mode: DelayMode<f64>) -> DelayCompensatedNav<f64> {
-    let config = NavConfig {
+/// `proposed` estimates the delay (initial std `initial_std_s`, else the
+/// loop's default), `oracle` is given the true (constant) one.
+fn nav(
+    sim: &SimConfig,
+    mode: DelayMode<f64>,
+    initial_std_s: Option<f64>,
+) -> DelayCompensatedNav<f64> {
+    let mut config = NavConfig {
         ekf: ekf16_config(sim),
         mode,
         imu_rate_hz: sim.sensors.imu_rate_hz,
         ..NavConfig::default()
     };
+    if let Some(std) = initial_std_s {
+        config.delay_loop.fusion.initial_std_s = std;
+    }
     DelayCompensatedNav::new(config).expect("valid navigator config")
 }
 
@@ -403,6 +460,24 @@ struct ScenarioResult {
     /// First seed's traces per estimator, and the truth's pitch and delay.
     traces: Vec<(&'static str, Trace)>,
     truth_trace: Vec<(f64, f64, f64)>,
+    /// Calibrated delay per seed, s (empty with `--no-calibration`).
+    calibrated_delays_s: Vec<f64>,
+}
+
+impl ScenarioResult {
+    /// RMS error of the calibrated delays, s.
+    fn calibration_rms_error_s(&self) -> Option<f64> {
+        (!self.calibrated_delays_s.is_empty()).then(|| {
+            let n = self.calibrated_delays_s.len() as f64;
+            (self
+                .calibrated_delays_s
+                .iter()
+                .map(|d| (d - self.true_delay_s).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
+        })
+    }
 }
 
 fn fmt_value(x: f64) -> String {
@@ -440,6 +515,23 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
             skip_s,
             duration_s
         );
+        let start = match r.calibration_rms_error_s() {
+            Some(rms) => format!(
+                "`proposed` and `aekf17` start from an offline calibration on a separate run \
+                 (seed + {CALIBRATION_SEED_OFFSET}): {} s per seed, RMS error {:.2} ms",
+                r.calibrated_delays_s
+                    .iter()
+                    .map(|d| format!("{d:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                rms * 1e3
+            ),
+            None => format!(
+                "`proposed` and `aekf17` start from {} s, uncalibrated",
+                UNCALIBRATED_START.delay_s
+            ),
+        };
+        let _ = writeln!(out, "{start}\n");
         let _ = writeln!(
             out,
             "| RMSE | {} | paper proposed | paper AEKF | floor |",
@@ -590,6 +682,8 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
                 "accel_limit_m_s2": r.scenario.accel_limit_m_s2(),
                 "true_delay_s": r.true_delay_s,
                 "delay_bound_s": json_number(r.delay_bound_s),
+                "calibrated_delay_s": r.calibrated_delays_s,
+                "calibration_rms_error_s": r.calibration_rms_error_s().map_or(Value::Null, json_number),
                 "noise_floor": {
                     "tilt_deg": f.tilt_rad.to_degrees(),
                     "vel_m_s": f.velocity_norm_m_s,
@@ -830,8 +924,10 @@ fn run_scenario(
     duration_s: f64,
     skip_s: f64,
     keep_trace: bool,
+    calibrated: bool,
     progress: &mut Progress,
 ) -> ScenarioResult {
+    let mut calibrated_delays_s = Vec::new();
     let registry = estimators();
     let mut scores: Vec<Vec<Metrics>> = registry.iter().map(|_| Vec::new()).collect();
     let mut bounds = Vec::new();
@@ -883,11 +979,21 @@ fn run_scenario(
                 })
                 .collect();
         }
+        let start = if calibrated {
+            let mut cal = config.clone();
+            cal.seed = seed + CALIBRATION_SEED_OFFSET;
+            let start = calibrate(&cal);
+            calibrated_delays_s.push(start.delay_s);
+            start
+        } else {
+            UNCALIBRATED_START
+        };
         let setup = RunSetup {
             config,
             events,
             skip_us,
             keep_trace: first,
+            start,
         };
         for (i, estimator) in registry.iter().enumerate() {
             let started = Instant::now();
@@ -916,6 +1022,7 @@ fn run_scenario(
             .collect(),
         traces,
         truth_trace,
+        calibrated_delays_s,
     }
 }
 
@@ -988,6 +1095,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 duration_s,
                 args.skip,
                 plots.is_some(),
+                !args.no_calibration,
                 &mut progress,
             )
         })
