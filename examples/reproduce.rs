@@ -920,13 +920,16 @@ fn sim_config(scenario: Scenario, seed: u64, duration_s: f64, delay_s: Option<f6
 fn run_scenario(
     scenario: Scenario,
     seeds: &[u64],
-    delay_s: Option<f64>,
-    duration_s: f64,
-    skip_s: f64,
-    keep_trace: bool,
-    calibrated: bool,
+    options: &RunOptions,
     progress: &mut Progress,
 ) -> ScenarioResult {
+    let RunOptions {
+        delay_s,
+        duration_s,
+        skip_s,
+        keep_trace,
+        calibrated,
+    } = *options;
     let mut calibrated_delays_s = Vec::new();
     let registry = estimators();
     let mut scores: Vec<Vec<Metrics>> = registry.iter().map(|_| Vec::new()).collect();
@@ -1026,6 +1029,17 @@ fn run_scenario(
     }
 }
 
+/// The options shared by every scenario of a run.
+struct RunOptions {
+    /// True delay, s, when not the scenario's default.
+    delay_s: Option<f64>,
+    duration_s: f64,
+    skip_s: f64,
+    keep_trace: bool,
+    /// Start the delay estimators from an offline calibration.
+    calibrated: bool,
+}
+
 /// Progress on stderr: one line per estimator run.
 struct Progress {
     done: usize,
@@ -1085,20 +1099,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             eprintln!("wrote {n} events to {}", path.display());
         }
     }
+    let options = RunOptions {
+        delay_s: args.delay,
+        duration_s,
+        skip_s: args.skip,
+        keep_trace: plots.is_some(),
+        calibrated: !args.no_calibration,
+    };
     let results: Vec<ScenarioResult> = scenarios
         .iter()
-        .map(|&s| {
-            run_scenario(
-                s,
-                &seeds,
-                args.delay,
-                duration_s,
-                args.skip,
-                plots.is_some(),
-                !args.no_calibration,
-                &mut progress,
-            )
-        })
+        .map(|&s| run_scenario(s, &seeds, &options, &mut progress))
         .collect();
     print!(
         "{}",
