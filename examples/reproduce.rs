@@ -24,6 +24,7 @@
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
+use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
 use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
 use delaynav::sim::{
@@ -82,6 +83,10 @@ struct Args {
     /// Also write each scenario's first-seed run as a CSV log under DIR/<scenario>-seed<S>/.
     #[arg(long, value_name = "DIR")]
     csv: Option<PathBuf>,
+    /// Start `proposed` and `aekf17` from the fixed 0.1 s instead of an
+    /// offline calibration on a separate run (sec. 2.2.2).
+    #[arg(long)]
+    no_calibration: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -90,6 +95,57 @@ struct RunSetup {
     events: Vec<SimEvent>,
     skip_us: u64,
     keep_trace: bool,
+    /// Where `proposed` and `aekf17` start their delay estimate.
+    start: DelayStart,
+}
+
+/// The initial delay of the estimators that estimate it.
+#[derive(Debug, Clone, Copy)]
+struct DelayStart {
+    delay_s: f64,
+    /// Initial standard deviation, s; `None` keeps each estimator's default.
+    std_s: Option<f64>,
+}
+
+/// The uncalibrated start: 100 ms below the default true delay.
+const UNCALIBRATED_START: DelayStart = DelayStart {
+    delay_s: 0.1,
+    std_s: None,
+};
+
+/// Seed offset of the calibration run of each seed.
+const CALIBRATION_SEED_OFFSET: u64 = 10_000;
+
+/// Length of each calibration run, s, whatever the scored run's length (a
+/// 20 s record holds too little motion: two of the scenario's strong
+/// manoeuvres need 60 s).
+const CALIBRATION_DURATION_S: f64 = 60.0;
+
+/// Offline calibration (sec. 2.2.2) on a separate simulated run with the
+/// same sensors and true delay: IMU-only attitude, correlation over +-6 s.
+/// The initial standard deviation is one correlation grid sample.
+fn calibrate(config: &SimConfig) -> DelayStart {
+    let cal_config = CalibrationConfig::<f64>::default();
+    let mut calibrator =
+        Box::new(DefaultCalibrator::<f64>::new(cal_config).expect("valid calibration config"));
+    let events: Vec<SimEvent> = Simulation::new(config.clone())
+        .expect("valid calibration run")
+        .collect();
+    let imu = events.iter().filter_map(|e| match e {
+        SimEvent::Imu { sample, .. } => Some(*sample),
+        _ => None,
+    });
+    let gps = events.iter().filter_map(|e| match e {
+        SimEvent::Gps { fix, .. } => Some(*fix),
+        _ => None,
+    });
+    match calibrator.calibrate(imu, gps) {
+        Ok(c) => DelayStart {
+            delay_s: c.delay_s.clamp(0.0, 1.0),
+            std_s: Some(1.0 / cal_config.correlation_rate_hz),
+        },
+        Err(_) => UNCALIBRATED_START,
+    }
 }
 
 /// Time series of one estimator on one run, for the plots.
@@ -144,11 +200,12 @@ fn estimators() -> Vec<Estimator> {
         Estimator {
             name: "aekf17",
             run: |s| {
-                score(
-                    AugmentedEkf17::new(Aekf17Config::with_nav(ekf16_config(&s.config)))
-                        .expect("valid Aekf17 config"),
-                    s,
-                )
+                let mut config = Aekf17Config::with_nav(ekf16_config(&s.config));
+                config.initial_delay_s = s.start.delay_s;
+                if let Some(std) = s.start.std_s {
+                    config.initial_delay_std_s = std;
+                }
+                score(AugmentedEkf17::new(config).expect("valid Aekf17 config"), s)
             },
         },
         Estimator {
@@ -158,8 +215,9 @@ fn estimators() -> Vec<Estimator> {
                     nav(
                         &s.config,
                         DelayMode::Estimated {
-                            initial_s: PROPOSED_INITIAL_DELAY_S,
+                            initial_s: s.start.delay_s,
                         },
+                        s.start.std_s,
                     ),
                     s,
                 )
@@ -174,6 +232,7 @@ fn estimators() -> Vec<Estimator> {
                         DelayMode::Fixed {
                             delay_s: s.config.delay.initial_s,
                         },
+                        None,
                     ),
                     s,
                 )
@@ -182,20 +241,23 @@ fn estimators() -> Vec<Estimator> {
     ]
 }
 
-/// Initial delay of the `proposed` row, s: the start of `aekf17`
-/// (100 ms below the default true delay), standing in for the rough
-/// offline calibration the paper starts from (sec. 2.2.2).
-const PROPOSED_INITIAL_DELAY_S: f64 = 0.1;
-
 /// The delay-compensated navigator on the same EKF configuration as `ekf16`:
-/// `proposed` estimates the delay, `oracle` is given the true (constant) one.
-fn nav(sim: &SimConfig, mode: DelayMode<f64>) -> DelayCompensatedNav<f64> {
-    let config = NavConfig {
+/// `proposed` estimates the delay (initial std `initial_std_s`, else the
+/// loop's default), `oracle` is given the true (constant) one.
+fn nav(
+    sim: &SimConfig,
+    mode: DelayMode<f64>,
+    initial_std_s: Option<f64>,
+) -> DelayCompensatedNav<f64> {
+    let mut config = NavConfig {
         ekf: ekf16_config(sim),
         mode,
         imu_rate_hz: sim.sensors.imu_rate_hz,
         ..NavConfig::default()
     };
+    if let Some(std) = initial_std_s {
+        config.delay_loop.fusion.initial_std_s = std;
+    }
     DelayCompensatedNav::new(config).expect("valid navigator config")
 }
 
@@ -403,6 +465,24 @@ struct ScenarioResult {
     /// First seed's traces per estimator, and the truth's pitch and delay.
     traces: Vec<(&'static str, Trace)>,
     truth_trace: Vec<(f64, f64, f64)>,
+    /// Calibrated delay per seed, s (empty with `--no-calibration`).
+    calibrated_delays_s: Vec<f64>,
+}
+
+impl ScenarioResult {
+    /// RMS error of the calibrated delays, s.
+    fn calibration_rms_error_s(&self) -> Option<f64> {
+        (!self.calibrated_delays_s.is_empty()).then(|| {
+            let n = self.calibrated_delays_s.len() as f64;
+            (self
+                .calibrated_delays_s
+                .iter()
+                .map(|d| (d - self.true_delay_s).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
+        })
+    }
 }
 
 fn fmt_value(x: f64) -> String {
@@ -440,6 +520,24 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
             skip_s,
             duration_s
         );
+        let start = match r.calibration_rms_error_s() {
+            Some(rms) => format!(
+                "`proposed` and `aekf17` start from an offline calibration on a separate \
+                 {CALIBRATION_DURATION_S} s run (seed + {CALIBRATION_SEED_OFFSET}): {} s per seed, \
+                 RMS error {:.2} ms",
+                r.calibrated_delays_s
+                    .iter()
+                    .map(|d| format!("{d:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                rms * 1e3
+            ),
+            None => format!(
+                "`proposed` and `aekf17` start from {} s, uncalibrated",
+                UNCALIBRATED_START.delay_s
+            ),
+        };
+        let _ = writeln!(out, "{start}\n");
         let _ = writeln!(
             out,
             "| RMSE | {} | paper proposed | paper AEKF | floor |",
@@ -590,6 +688,8 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
                 "accel_limit_m_s2": r.scenario.accel_limit_m_s2(),
                 "true_delay_s": r.true_delay_s,
                 "delay_bound_s": json_number(r.delay_bound_s),
+                "calibrated_delay_s": r.calibrated_delays_s,
+                "calibration_rms_error_s": r.calibration_rms_error_s().map_or(Value::Null, json_number),
                 "noise_floor": {
                     "tilt_deg": f.tilt_rad.to_degrees(),
                     "vel_m_s": f.velocity_norm_m_s,
@@ -826,12 +926,17 @@ fn sim_config(scenario: Scenario, seed: u64, duration_s: f64, delay_s: Option<f6
 fn run_scenario(
     scenario: Scenario,
     seeds: &[u64],
-    delay_s: Option<f64>,
-    duration_s: f64,
-    skip_s: f64,
-    keep_trace: bool,
+    options: &RunOptions,
     progress: &mut Progress,
 ) -> ScenarioResult {
+    let RunOptions {
+        delay_s,
+        duration_s,
+        skip_s,
+        keep_trace,
+        calibrated,
+    } = *options;
+    let mut calibrated_delays_s = Vec::new();
     let registry = estimators();
     let mut scores: Vec<Vec<Metrics>> = registry.iter().map(|_| Vec::new()).collect();
     let mut bounds = Vec::new();
@@ -883,11 +988,22 @@ fn run_scenario(
                 })
                 .collect();
         }
+        let start = if calibrated {
+            let mut cal = config.clone();
+            cal.seed = seed + CALIBRATION_SEED_OFFSET;
+            cal.duration_s = CALIBRATION_DURATION_S;
+            let start = calibrate(&cal);
+            calibrated_delays_s.push(start.delay_s);
+            start
+        } else {
+            UNCALIBRATED_START
+        };
         let setup = RunSetup {
             config,
             events,
             skip_us,
             keep_trace: first,
+            start,
         };
         for (i, estimator) in registry.iter().enumerate() {
             let started = Instant::now();
@@ -916,7 +1032,19 @@ fn run_scenario(
             .collect(),
         traces,
         truth_trace,
+        calibrated_delays_s,
     }
+}
+
+/// The options shared by every scenario of a run.
+struct RunOptions {
+    /// True delay, s, when not the scenario's default.
+    delay_s: Option<f64>,
+    duration_s: f64,
+    skip_s: f64,
+    keep_trace: bool,
+    /// Start the delay estimators from an offline calibration.
+    calibrated: bool,
 }
 
 /// Progress on stderr: one line per estimator run.
@@ -978,19 +1106,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             eprintln!("wrote {n} events to {}", path.display());
         }
     }
+    let options = RunOptions {
+        delay_s: args.delay,
+        duration_s,
+        skip_s: args.skip,
+        keep_trace: plots.is_some(),
+        calibrated: !args.no_calibration,
+    };
     let results: Vec<ScenarioResult> = scenarios
         .iter()
-        .map(|&s| {
-            run_scenario(
-                s,
-                &seeds,
-                args.delay,
-                duration_s,
-                args.skip,
-                plots.is_some(),
-                &mut progress,
-            )
-        })
+        .map(|&s| run_scenario(s, &seeds, &options, &mut progress))
         .collect();
     print!(
         "{}",
