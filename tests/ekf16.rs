@@ -552,6 +552,10 @@ macro_rules! ekf16_tests {
             }
 
             fn running_filter() -> Ekf16<T> {
+                running_filter_with(config())
+            }
+
+            fn running_filter_with(config: Ekf16Config<T>) -> Ekf16<T> {
                 let s = Scenario {
                     motion: Motion::Turn {
                         speed: 8.0,
@@ -566,7 +570,7 @@ macro_rules! ekf16_tests {
                     with_mag: true,
                     first_gps_s: 2.0,
                 };
-                let mut ekf = Ekf16::<T>::new(config()).unwrap();
+                let mut ekf = Ekf16::<T>::new(config).unwrap();
                 fly(&mut ekf, &s, |_, _| {});
                 assert!(ekf.is_initialized());
                 ekf
@@ -734,6 +738,73 @@ macro_rules! ekf16_tests {
                     ..imu
                 })
                 .unwrap();
+            }
+
+            /// Fixes 200 m away, every 0.2 s for 6 s: all gated; once
+            /// both blocks have been rejected for `gps_reset_timeout_us`
+            /// (5 s after the last accepted fix, which was at most 1 s
+            /// before `t`), position and velocity are reset to the fix with
+            /// `R` as their variance, and the next such fix is fused. With
+            /// the timeout 0 the filter never comes back.
+            fn fixes_away(ekf: &mut Ekf16<T>) -> Vec<(u64, bool)> {
+                let t = ekf.time_us().unwrap();
+                let e = ekf.estimate().unwrap();
+                let jump = Vector3::new(lit(200.0), lit(0.0), lit(0.0));
+                (1..=30u64)
+                    .map(|k| {
+                        let fix = gps_fix(
+                            t + k * 200_000,
+                            GpsPosition::Ned(e.position_ned_m + jump),
+                            e.velocity_ned_m_s + jump,
+                        );
+                        let resets = ekf.refusals().gps_resets;
+                        ekf.push_gps(&fix).unwrap();
+                        (k * 200_000, ekf.refusals().gps_resets > resets)
+                    })
+                    .collect()
+            }
+
+            #[test]
+            fn persistently_rejected_gps_resets_position_and_velocity() {
+                let mut ekf = running_filter();
+                let e = ekf.estimate().unwrap();
+                let resets: Vec<_> = fixes_away(&mut ekf)
+                    .into_iter()
+                    .filter(|r| r.1)
+                    .map(|r| r.0)
+                    .collect();
+                assert_eq!(resets.len(), 1, "{resets:?}");
+                assert!((4_000_000..=5_200_000).contains(&resets[0]), "{resets:?}");
+                let after = ekf.estimate().unwrap();
+                let jump = Vector3::new(lit(200.0), lit(0.0), lit(0.0));
+                assert!((after.position_ned_m - e.position_ned_m - jump).norm() < lit(1e-3));
+                assert!((after.velocity_ned_m_s - e.velocity_ned_m_s - jump).norm() < lit(1e-3));
+                let p = ekf.covariance();
+                let r = ekf.config().gps_horizontal_std_m.powi(2);
+                assert!(p == &p.transpose());
+                assert!(min_relative_eigenvalue(p) > -1e3 * $round);
+                assert_eq!(p.row(POS).iter().filter(|v| **v != lit(0.0)).count(), 1);
+                // Reset to `R`, then each later fix (same value, no IMU step)
+                // fused: `1/P` grows by `1/R` per fix.
+                let fused_after = (30 - resets[0] / 200_000) as f64;
+                let expected = r.as_f64() / (fused_after + 1.0);
+                assert!((p[(POS, POS)].as_f64() / expected - 1.0).abs() < 1e-4);
+                assert_eq!(ekf.refusals().gps_resets, 1);
+                // The fixes after the reset agree with the state: fused.
+                let (position, velocity) = ekf.last_gps_fusion().unwrap();
+                assert!(position.fused && velocity.fused);
+
+                let mut never = running_filter_with(Ekf16Config {
+                    gps_reset_timeout_us: 0,
+                    ..config()
+                });
+                let before = never.estimate().unwrap();
+                assert!(fixes_away(&mut never).iter().all(|r| !r.1));
+                assert_eq!(never.refusals().gps_resets, 0);
+                assert_eq!(
+                    never.estimate().unwrap().position_ned_m,
+                    before.position_ned_m
+                );
             }
 
             #[test]

@@ -964,11 +964,13 @@ fn run_every_estimator(
     let at_rest = LogReader::<f64>::open(&files, reader).unwrap();
     let inclination = delaynav::replay::inclination_at_rest(at_rest, 10_000_000).unwrap();
     let declination = options.estimator_declination_rad;
-    let ekf16 = delaynav::Ekf16Config {
+    // log171's measured in-flight IMU noise (the paper's Table 3 noise made
+    // the filters overconfident here: fixes gated, velocity diverging).
+    let ekf16 = ardupilot::with_log171_imu_noise(delaynav::Ekf16Config {
         mag_inclination_rad: inclination,
         mag_declination_rad: declination,
         ..delaynav::Ekf16Config::default()
-    };
+    });
     let proposed = delaynav::NavConfig {
         ekf: ekf16,
         imu_rate_hz: 50.0, // log171's IMU rate
@@ -1061,10 +1063,14 @@ fn added_gps_delay_experiment() {
         match (a.final_delay_s, b.final_delay_s) {
             (Some(da), Some(db)) => {
                 let change = db - da;
+                // proposed: the paper's method moved by 0.297 s (7 ms off);
+                // here it must be within 15 ms (measured: 1 ms).
                 let expected = if *name == "proposed" {
-                    0.2..0.4
+                    0.285..0.315
                 } else {
-                    0.05..0.45
+                    // aekf17: measured +0.115 s; its first-order delayed-GPS
+                    // model saturates at ~0.33 s on this flight (docs/RESULTS.md).
+                    0.09..0.45
                 };
                 assert!(
                     expected.contains(&change),
@@ -1076,6 +1082,52 @@ fn added_gps_delay_experiment() {
                 "{name}: tilt error did not grow with 0.3 s more GPS delay: {ra:?} -> {rb:?}"
             ),
         }
+    }
+}
+
+/// Issue 6's accuracy targets for the delay-compensated navigator on log171
+/// (flight window scored from 75 s after a 30 s warm-up, as the replay
+/// example runs it): roll and pitch within 2 deg RMS, yaw within 5 deg RMS of
+/// the onboard EKF, the delay in 0.15-0.40 s (the crude offline checks put
+/// it at 0.26-0.30 s), and added GPS delays of 0.1 and 0.2 s moving the
+/// estimate by the added amount within 15 ms. No fix may be gated and the
+/// velocity must stay within 1 m/s RMS of the onboard EKF's.
+#[test]
+fn proposed_meets_the_flight_log_targets() {
+    let Some(dir) = log171() else { return };
+    let window = delaynav::replay::RunOptions {
+        start_us: Some(45_000_000),
+        score_from_us: Some(75_000_000),
+        ..flight_window()
+    };
+    let run = |added_us: u64| {
+        let reader = ReaderOptions {
+            gps_delay_added_us: added_us,
+            ..ReaderOptions::default()
+        };
+        let (name, s) = run_every_estimator(&dir, &reader, &window).remove(0);
+        assert_eq!(name, "proposed");
+        s
+    };
+    let plain = run(0);
+    let rms = plain.reference_rms.unwrap();
+    println!(
+        "proposed: {rms:?}, delay {:?}, gated {}",
+        plain.final_delay_s, plain.gps_gated
+    );
+    assert!(rms.roll_deg < 2.0 && rms.pitch_deg < 2.0, "{rms:?}");
+    assert!(rms.yaw_deg < 5.0, "{rms:?}");
+    assert!(rms.velocity_m_s.unwrap() < 1.0, "{rms:?}");
+    assert_eq!(plain.gps_gated, 0);
+    let delay = plain.final_delay_s.unwrap();
+    assert!((0.15..=0.40).contains(&delay), "delay {delay} s");
+    for added_s in [0.1, 0.2] {
+        let moved = run((added_s * 1e6) as u64).final_delay_s.unwrap() - delay;
+        println!("added {added_s} s: moved {moved} s");
+        assert!(
+            (moved - added_s).abs() < 0.015,
+            "added {added_s} s, the estimate moved {moved} s"
+        );
     }
 }
 

@@ -96,6 +96,11 @@ pub struct Ekf16Config<T: Scalar> {
     pub gps_velocity_gate: T,
     /// Chi-square gate on the NIS of the magnetometer block (3 DOF).
     pub mag_gate: T,
+    /// Longest time, microseconds, with every GPS fix rejected (both
+    /// blocks) before position and velocity are reset to a fix; 0: never.
+    /// Without it a filter that has drifted past both gates never accepts a
+    /// fix again and its velocity diverges.
+    pub gps_reset_timeout_us: u64,
 
     /// Longest IMU step integrated, microseconds; longer gaps are refused
     /// with [`Error::StepTooLong`] (covariance grows, state not propagated).
@@ -149,6 +154,7 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             gps_position_gate: T::lit(GATE_5_SIGMA_3DOF),
             gps_velocity_gate: T::lit(GATE_5_SIGMA_3DOF),
             mag_gate: T::lit(GATE_5_SIGMA_3DOF),
+            gps_reset_timeout_us: 5_000_000,
             max_imu_step_us: 250_000,
             max_gyro_rad_s: T::lit(35.0),
             max_accel_m_s2: T::lit(400.0),

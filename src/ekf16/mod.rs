@@ -36,7 +36,12 @@
 //!   `P = A P A^T + Q`.
 //! - **GPS fix** ([`Navigator::push_gps`]): position then velocity, two
 //!   3-D blocks, each gated on its NIS and recorded; the velocity block is
-//!   linearized after the position update (sequential fusion).
+//!   linearized after the position update (sequential fusion). When every
+//!   fix has had both blocks rejected for `gps_reset_timeout_us` (default
+//!   5 s), position and velocity are reset to the fix: each shifted by its
+//!   innovation, its rows and columns of `P` cleared and its variances set to
+//!   the fix's `R` (ArduPilot and PX4 recover the same way); otherwise a
+//!   filter that has drifted past both gates never accepts a fix again.
 //! - **Magnetometer sample** ([`Navigator::push_mag`]): the heading-only
 //!   pseudo-measurement, gated and recorded.
 //!
@@ -117,6 +122,9 @@ pub struct RefusalCounters {
     pub mag_rejected: u32,
     /// Fusions refused because the innovation covariance had no Cholesky factor.
     pub not_positive_definite: u32,
+    /// Position and velocity reset to a fix after `gps_reset_timeout_us`
+    /// of rejected fixes.
+    pub gps_resets: u32,
 }
 
 /// The 16-state EKF of the paper (section 2.1), GPS fused without delay handling.

@@ -30,7 +30,10 @@
 //!   [`GpsMeasurement`] for the filter's own GPS model.
 //!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
 //!   fuse position then velocity with [`NavCore::fuse`], store the records
-//!   with [`NavCore::record_gps`].
+//!   with [`NavCore::record_gps`]. When both blocks of every fix have been
+//!   rejected for `gps_reset_timeout_us`, it resets position and velocity to
+//!   the fix (`NavCore::reset_to_gps`, counted in
+//!   [`RefusalCounters::gps_resets`]).
 //! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
 //!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
@@ -220,6 +223,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     frame: Option<LocalFrame>,
     last_gps: Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
     last_mag: Option<FusionRecord<T, 3>>,
+    /// Time of the last fix that initialized the filter or had a block fused
+    /// (or of the first rejected fix of a filter started from a state).
+    last_gps_accepted_us: Option<u64>,
     refusals: RefusalCounters,
 }
 
@@ -256,6 +262,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             frame: config.origin.map(LocalFrame::new),
             last_gps: None,
             last_mag: None,
+            last_gps_accepted_us: None,
             refusals: RefusalCounters::default(),
         };
         for (i, e) in extras.iter().enumerate() {
@@ -591,6 +598,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             return Ok(GpsStep::Waiting);
         }
         self.initialize(&m)?;
+        self.last_gps_accepted_us = Some(fix.t_us);
         self.gps_clock_us = Some(fix.t_us);
         self.frame = frame;
         Ok(GpsStep::Initialized)
@@ -740,7 +748,54 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         )?;
         after_fusion(self);
         self.record_gps(position, velocity);
+        if position.fused || velocity.fused {
+            self.last_gps_accepted_us = Some(m.t_us);
+        } else if self.gps_rejected_too_long(m.t_us) {
+            self.reset_to_gps(&position.innovation, &velocity.innovation, &m);
+            self.last_gps_accepted_us = Some(m.t_us);
+        } else {
+            // A filter started from a given state: count from this rejection.
+            self.last_gps_accepted_us.get_or_insert(m.t_us);
+        }
         Ok(GpsOutcome::Fused { position, velocity })
+    }
+
+    /// Whether every fix since the last accepted one, up to `t_us`, was
+    /// rejected for at least `gps_reset_timeout_us` (never when it is 0).
+    fn gps_rejected_too_long(&self, t_us: u64) -> bool {
+        let timeout = self.config.gps_reset_timeout_us;
+        timeout > 0
+            && self
+                .last_gps_accepted_us
+                .is_some_and(|t| t_us.saturating_sub(t) >= timeout)
+    }
+
+    /// Resets position and velocity to a fix both of whose blocks were
+    /// rejected: each is shifted by its innovation `z - h(x)` (so the
+    /// filter's own GPS model, lever arm and delay term included, then
+    /// predicts the fix), their rows and columns of `P` are cleared and their
+    /// variances set to the fix's noise `R`. `P` stays symmetric PSD (a
+    /// block-diagonal of PSD blocks). Attitude, biases and extra states keep
+    /// their values.
+    fn reset_to_gps(
+        &mut self,
+        position_innovation: &Vector3<T>,
+        velocity_innovation: &Vector3<T>,
+        m: &GpsMeasurement<T>,
+    ) {
+        for (start, innovation, noise) in [
+            (POS, position_innovation, &m.position_noise),
+            (VEL, velocity_innovation, &m.velocity_noise),
+        ] {
+            for i in 0..3 {
+                let k = start + i;
+                self.x[k] += innovation[i];
+                self.p.row_mut(k).fill(T::zero());
+                self.p.column_mut(k).fill(T::zero());
+                self.p[(k, k)] = noise[(i, i)];
+            }
+        }
+        bump(&mut self.refusals.gps_resets);
     }
 
     /// Stores the records of one GPS fusion and counts rejections.
