@@ -7,7 +7,6 @@ mod common;
 
 use common::Motion;
 use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, State, Suite, feed, fly};
-use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, WhiteningFilter};
 use delaynav::{
     Ekf16Config, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator,
@@ -180,8 +179,7 @@ macro_rules! nav_tests {
                     170.0,
                     0.1,
                     step,
-                    |nav, truth| {
-                        let _ = truth;
+                    |nav, _truth| {
                         if nav.estimate().is_some_and(|e| e.t_us == 49_000_000) {
                             before = nav.delay_s().as_f64();
                         }
@@ -601,7 +599,6 @@ fn initialization_outcomes_follow_ekf16() {
         nav.push_gps(&fix(260_500)).unwrap(),
         GpsOutcome::Fused { .. }
     ));
-    let _ = wrap_pi(0.0);
 }
 
 mod properties {
