@@ -53,11 +53,13 @@
 pub mod csv;
 pub mod delay;
 pub mod noise_floor;
+pub mod score;
 pub mod sensors;
 pub mod trajectory;
 
 pub use delay::{DelayProfile, DelayStep};
 pub use noise_floor::{NoiseFloor, noise_floor};
+pub use score::{attitude_error_ned_rad, tilt_heading_error_rad};
 pub use sensors::{GpsPositionOutput, SensorConfig, VibrationHarmonic};
 pub use trajectory::{
     Kinematics, MotionState, PathTerm, STANDARD_GRAVITY, Scenario, Trajectory, TrajectoryConfig,
