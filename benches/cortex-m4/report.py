@@ -38,11 +38,14 @@ def main():
     args = ap.parse_args()
     limits = json.loads(args.limits.read_text())
 
-    runs, first = {}, {}
+    runs, first, outside = {}, {}, {}
     for name in ESTIMATORS:
         attempts = []
         for path in args.logs.glob(f"{name}-*.txt"):
             ms, placement = path.stem[len(name) + 1:].split("-")
+            if placement == "outside":
+                outside[name] = parse(path)
+                continue
             attempts.append((-int(ms), placement != "static", int(ms), parse(path)))
         attempts = [(ms, r) for _, _, ms, r in sorted(attempts, key=lambda a: a[:2])]
         if not attempts or attempts[0][1] is None:
@@ -62,6 +65,10 @@ def main():
             entry["max_delay_s"] = ms / 1000
         if r["placement"] != "static":
             entry["placement"] = r["placement"]
+        o = outside.get(name)
+        if o and o["kind"] == "RESULT":
+            # Did not fit at 0.5 s at all: its counts with SRAM beyond 128 KB.
+            entry["outside_128_kb_at_0_5_s"] = {key: int(o[field]) for key, field in FIGURES}
         report["estimators"][name] = entry
     # Flash of the main build (the one without the fallback instantiations).
     report["flash_bytes"] = int(runs["ekf16_f32"][1]["flash"])
@@ -81,6 +88,13 @@ def main():
               f"{int(r['imu_mean']):>7,} {int(r['mag_mean']):>7,} {int(r['gps_mean']):>7,} "
               f"{int(r['gps_max']):>8,} {int(r['estimate_mean']):>8,} {int(r['size_of']):>8,} "
               f"{int(r['stack_peak_construct']):>9,} {int(r['stack_peak_push']):>10,}")
+        o = outside.get(name)
+        if o and o["kind"] == "RESULT":
+            print(f"{'  (outside 128 KB)':<18} {float(o['max_delay_s']):>8.2f}s {int(o['mean']):>14,} "
+                  f"{int(o['max']):>8,} {int(o['imu_mean']):>7,} {int(o['mag_mean']):>7,} "
+                  f"{int(o['gps_mean']):>7,} {int(o['gps_max']):>8,} {int(o['estimate_mean']):>8,} "
+                  f"{int(o['size_of']):>8,} {int(o['stack_peak_construct']):>9,} "
+                  f"{int(o['stack_peak_push']):>10,}")
         errors = sum(int(r[k]) for k in ("imu_errors", "mag_errors", "gps_errors"))
         if errors:
             print(f"  {name}: {errors} pushes returned an error")
@@ -91,8 +105,8 @@ def main():
                   f"{f['phase']} overflowed it; figures above at {ms / 1000} s with the object "
                   f"{'in a static' if r['placement'] == 'static' else 'on the stack (stack figures exclude it)'}")
     print("(mean/max per IMU sample: push_imu plus the magnetometer and GPS pushes of the same time step;"
-          " imu/mag/gps: mean of each call; estimate() apart; stack in bytes, construction into a static"
-          " and the pushes)")
+          " imu/mag/gps: mean of each call; estimate() apart; stack in bytes, construction and the pushes,"
+          " beyond the object)")
     print(f"flash: {report['flash_bytes']:,} bytes (the four estimators, semihosting and panic"
           " formatting; the embedded samples excluded)")
 
@@ -104,9 +118,11 @@ def main():
         if abs(ms / 1000 - lim["max_delay_s"]) > 1e-9 or r["placement"] != "static":
             failures.append(f"{name} does not construct into a static at {lim['max_delay_s']} s")
             print(f"{name:<18} {'constructs into a static at':<34} {'no':>10} {str(lim['max_delay_s']) + ' s':>10}  NO")
+        entry = report["estimators"][name]
+        at_limit = entry.get("outside_128_kb_at_0_5_s", entry)
         for key, _ in FIGURES:
             if key in lim:
-                value = report["estimators"][name][key]
+                value = at_limit[key]
                 if key == "size_of_bytes":
                     value = int(first[name][1]["size_of"])
                 ok = value <= lim[key]

@@ -16,15 +16,18 @@
 //!   them with the same time step and orders them after the IMU sample).
 //!   `estimate()` is counted apart, once per IMU sample.
 //! - RAM: `size_of` of the estimator, which is constructed into the top of
-//!   the WORK region (`slot.write(E::new(..)?)`, the way a user fills a
-//!   `static`); below it the thread stack (PSP) is painted, and the deepest
-//!   overwritten word after the run gives the stack peak, construction
-//!   included. With `stack` on the command line the estimator is instead a
-//!   local of the thread's first frame (no second copy while it is built);
-//!   its `size_of` is then subtracted from the stack figures. The stack grows towards 0x20000000: an overflow faults there,
-//!   and the fault handler, on its own stack (MSP) in a separate region,
-//!   reports the estimator as not constructible instead of letting it
-//!   overwrite memory silently.
+//!   the part's 128 KB (WORK in `memory.x`) the way a user fills a `static`
+//!   (`slot.write(E::new(..))`); below it the thread stack (PSP) is painted,
+//!   and the deepest overwritten word after construction and after the
+//!   pushes gives the stack peak, construction included. With `stack` on
+//!   the command line the estimator is instead a local of the thread's first
+//!   frame (no copy while it is built), its `size_of` subtracted from the
+//!   stack figures; with `outside` likewise, but the stack may also use the
+//!   SRAM QEMU maps beyond the part's 128 KB: the counts of an estimator
+//!   that does not fit. The stack grows towards 0x20000000: an overflow
+//!   faults there, and the fault handler, on its own stack (MSP) beyond the
+//!   128 KB, reports the estimator as not fitting (`OVERFLOW`) instead of
+//!   letting it overwrite memory silently.
 //! - Flash: everything loaded into flash minus the embedded samples.
 //!
 //! Output lines (semihosting): `INFO ...`, then one of `RESULT ...`,
@@ -35,7 +38,7 @@
 
 use core::arch::asm;
 use core::hint::black_box;
-use core::mem::{align_of, size_of};
+use core::mem::{MaybeUninit, align_of, size_of};
 use core::sync::atomic::{Ordering, compiler_fence};
 
 use cortex_m::peripheral::SYST;
@@ -69,6 +72,7 @@ const MIN_STACK: usize = 1024;
 unsafe extern "C" {
     static _work_start: u32;
     static _work_end: u32;
+    static _outside_end: u32;
     static __sidata: u32;
     static __sdata: u32;
     static __edata: u32;
@@ -81,19 +85,44 @@ struct Task {
     name: &'static str,
     estimated: bool,
     max_delay_s: f32,
-    /// Constructed into the top of WORK (as into a `static`), else as a
-    /// local of the thread's first frame.
-    in_static: bool,
+    placement: Placement,
+    /// Address of the estimator's slot (unused on the stack).
+    slot: usize,
+    /// Top of the thread stack.
     stack_top: usize,
     size_of: usize,
     phase: &'static str,
+}
+
+/// Where the estimator lives while it runs.
+#[derive(Clone, Copy, PartialEq)]
+enum Placement {
+    /// At the top of WORK, as in a `static`; the stack below it.
+    Static,
+    /// A local of the thread's first frame (no copy while it is built).
+    Stack,
+    /// A local as with `Stack`, with the stack reaching beyond the part's
+    /// 128 KB into the SRAM QEMU maps above it (188 KB in all): the counts
+    /// of an estimator that does not fit.
+    Outside,
+}
+
+impl Placement {
+    fn name(self) -> &'static str {
+        match self {
+            Placement::Static => "static",
+            Placement::Stack => "stack",
+            Placement::Outside => "outside",
+        }
+    }
 }
 
 static mut TASK: Task = Task {
     name: "",
     estimated: true,
     max_delay_s: 0.0,
-    in_static: true,
+    placement: Placement::Static,
+    slot: 0,
     stack_top: 0,
     size_of: 0,
     phase: "start",
@@ -125,6 +154,11 @@ fn work_start() -> usize {
 fn work_end() -> usize {
     // SAFETY: as above.
     addr_of_symbol(unsafe { &_work_end })
+}
+
+fn outside_end() -> usize {
+    // SAFETY: as above.
+    addr_of_symbol(unsafe { &_outside_end })
 }
 
 /// Bytes of flash the image occupies, the embedded samples excluded.
@@ -387,14 +421,13 @@ fn close_group(stats: &mut Stats, t_us: u64, ticks: u32) {
     stats.samples.add(ticks, true);
 }
 
-/// Builds the estimator into `slot` (the top of WORK): the whole `Result`
-/// is written there, so that the optimiser can build it in place rather
-/// than in a temporary copied afterwards (what `new()` allows today).
+/// Builds the estimator into `slot`: the whole `Result` is written there
+/// through a reference the optimiser knows is valid, so that `new()` can
+/// return straight into it rather than into a temporary copied afterwards
+/// (what `new()` allows today).
 #[inline(never)]
-fn construct<E: Subject>(slot: *mut Result<E, Error>) {
-    // SAFETY: `slot` is aligned for the result, `size_of` bytes of WORK
-    // that nothing else uses.
-    unsafe { slot.write(E::build(&task())) };
+fn construct<E: Subject>(slot: &mut MaybeUninit<Result<E, Error>>) {
+    slot.write(E::build(&task()));
 }
 
 fn paint(from: usize, to: usize) {
@@ -427,9 +460,12 @@ fn stack_pointer() -> usize {
 extern "C" fn thread<E: Subject>() -> ! {
     let t = task();
     set_phase("construct");
-    if t.in_static {
-        let slot = t.stack_top as *mut Result<E, Error>;
+    if t.placement == Placement::Static {
+        // SAFETY: `t.slot` is aligned for the result and `size_of` bytes of
+        // SRAM that nothing else uses.
+        let slot = unsafe { &mut *(t.slot as *mut MaybeUninit<Result<E, Error>>) };
         construct::<E>(slot);
+        let slot = slot.as_mut_ptr();
         let stack_construct = stack_used(t.stack_top);
         // SAFETY: constructed above; nothing else refers to the slot.
         match unsafe { &mut *slot } {
@@ -520,7 +556,7 @@ fn run<E: Subject>(estimator: &mut E, stack_construct: usize, object_on_stack: u
 }
 
 fn placement(t: &Task) -> &'static str {
-    if t.in_static { "static" } else { "stack" }
+    t.placement.name()
 }
 
 /// Places the estimator at the top of WORK, paints the stack below it,
@@ -529,14 +565,18 @@ fn launch<E: Subject>() -> ! {
     let size = size_of::<E>();
     let slot_size = size_of::<Result<E, Error>>();
     let align = align_of::<Result<E, Error>>().max(8);
-    let top = if task().in_static {
-        (work_end() - slot_size) & !(align - 1)
-    } else {
-        work_end() & !7
+    let (slot, top) = match task().placement {
+        Placement::Static => {
+            let slot = (work_end() - slot_size) & !(align - 1);
+            (slot, slot)
+        }
+        Placement::Stack => (0, work_end() & !7),
+        Placement::Outside => (0, outside_end() & !7),
     };
     // SAFETY: single-threaded set-up.
     unsafe {
         TASK.size_of = size;
+        TASK.slot = slot;
         TASK.stack_top = top;
     }
     let t = task();
@@ -577,9 +617,9 @@ fn launch<E: Subject>() -> ! {
     }
 }
 
-/// Reads `NAME DELAY_MS [stack]` from the semihosting command line (QEMU
-/// puts the kernel's path first).
-fn command_line(buf: &mut [u8; 160]) -> (&str, u32, bool) {
+/// Reads `NAME DELAY_MS [static|stack|outside]` from the semihosting
+/// command line (QEMU puts the kernel's path first).
+fn command_line(buf: &mut [u8; 160]) -> (&str, u32, Placement) {
     let mut block = [buf.as_mut_ptr() as usize, buf.len()];
     // SAFETY: the block points at `buf` and gives its length.
     let status = unsafe {
@@ -591,14 +631,18 @@ fn command_line(buf: &mut [u8; 160]) -> (&str, u32, bool) {
     // SAFETY: the host wrote the length back into the block.
     let len = unsafe { core::ptr::read_volatile(&block[1]) };
     if status != 0 || len > buf.len() {
-        return ("", 0, true);
+        return ("", 0, Placement::Static);
     }
     let line = core::str::from_utf8(&buf[..len]).unwrap_or("");
     let mut words = line.split_whitespace().skip(1);
     let name = words.next().unwrap_or("");
     let ms = words.next().and_then(|w| w.parse().ok()).unwrap_or(500);
-    let in_static = words.next() != Some("stack");
-    (name, ms, in_static)
+    let placement = match words.next() {
+        Some("stack") => Placement::Stack,
+        Some("outside") => Placement::Outside,
+        _ => Placement::Static,
+    };
+    (name, ms, placement)
 }
 
 /// Runs the navigator at the maximum delay `ms` when this build has it.
@@ -639,7 +683,7 @@ fn main() -> ! {
     unsafe { CALIBRATION = calibration };
 
     let mut buf = [0u8; 160];
-    let (name, ms, in_static) = command_line(&mut buf);
+    let (name, ms, placement) = command_line(&mut buf);
     let (name, estimated): (&'static str, bool) = match name {
         "nav_estimated_f32" => ("nav_estimated_f32", true),
         "nav_fixed_f32" => ("nav_fixed_f32", false),
@@ -651,7 +695,7 @@ fn main() -> ! {
     unsafe {
         TASK.name = name;
         TASK.estimated = estimated;
-        TASK.in_static = in_static;
+        TASK.placement = placement;
         TASK.max_delay_s = ms as f32 / 1000.0;
     }
     hprintln!(
