@@ -9,7 +9,8 @@
 //!
 //! The JSON holds `"faults": [{"name", "passed", "criterion", "measured", "limit"}]`
 //! (`measured` is `null` when the navigator had no estimate where the row
-//! counts); `docs/faults.md` explains every row.
+//! counts); `docs/faults.md` explains every row. `FAULT_DEBUG=<row name>`
+//! prints that row's errors once a second.
 
 use super::{CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, calibrate, nav};
 use delaynav::nav::{DelayCompensatedNav, DelayMode};
@@ -54,9 +55,12 @@ fn trace(job: &Job, base: &SimConfig, start: DelayStart) -> Vec<TracePoint> {
         Job::Case(c) => (c.sim.clone(), c.faults.clone(), c.on_backwards),
     };
     let events = FaultySimulation::new(sim.clone(), &faults).expect("valid fault run");
-    run_trace(events, proposed(&sim, start), on_backwards, |n| {
-        *n = proposed(&sim, start)
-    })
+    run_trace(
+        events,
+        proposed(&sim, start),
+        on_backwards,
+        DelayCompensatedNav::reset,
+    )
 }
 
 /// Runs the suite for `seed` with times scaled by `scale` (1: the 60 s runs).
@@ -129,6 +133,17 @@ pub fn run(seed: u64, scale: f64) -> Vec<FaultResult> {
         .enumerate()
         .map(|(i, c)| {
             let result = evaluate(c, &traces[first_case + i], reference_trace(c.reference));
+            if std::env::var("FAULT_DEBUG").is_ok_and(|v| v == c.name) {
+                for p in traces[first_case + i].iter().step_by(1000) {
+                    eprintln!(
+                        "{:.1} tilt {:.2} heading {:.2} herr {:.2}",
+                        p.t_s,
+                        p.tilt_deg,
+                        p.heading_deg,
+                        p.horizontal_error_m([0.0; 2])
+                    );
+                }
+            }
             eprintln!(
                 "{:<24} {:>10.3} (limit {:>5}) {}",
                 result.name,
