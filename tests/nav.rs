@@ -432,6 +432,24 @@ macro_rules! nav_tests {
                 };
                 assert!(nav.push_gps(&bad).is_err());
                 assert_eq!(nav.health().refusals.gps_accuracy, 1);
+                // After NED fixes, a geodetic one is a typed error, not a new origin.
+                let geodetic = Gps {
+                    t_us: t + 100_000,
+                    position: GpsPosition::Geodetic(delaynav::Geodetic {
+                        lat_deg: 31.0,
+                        lon_deg: 121.0,
+                        alt_m: 10.0,
+                    }),
+                    ..fix
+                };
+                assert!(matches!(
+                    nav.push_gps(&geodetic),
+                    Err(Error::OutOfRange {
+                        field: "gps.position",
+                        ..
+                    })
+                ));
+                assert_eq!(nav.health().refusals.gps_mixed_frames, 1);
             }
 
             #[test]

@@ -15,7 +15,7 @@
 //! - **the alignment state** ([`AlignmentState`]).
 //! - **the last reset and its cause** ([`ResetRecord`]).
 //! - **refusals per sensor and reason**: the navigator's own
-//!   ([`NavRefusals`](super::NavRefusals)) and the horizon EKF's
+//!   ([`NavRefusals`]) and the horizon EKF's
 //!   ([`RefusalCounters`]: gates, GPS resets).
 //! - **the delay status** ([`DelayStatus`]): filled from what the delay loop
 //!   exposes today (estimate, standard deviation, validity of the last

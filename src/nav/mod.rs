@@ -67,9 +67,22 @@
 //!
 //! # Initialization
 //! The horizon EKF initializes as [`Ekf16`] does, from delayed IMU samples
-//! and then a GPS fix. The output state starts from the horizon state at that
-//! moment; the present estimate is `None` until the horizon has reached the
-//! first stored output state (one delay later) and corrected it.
+//! and then a GPS fix, with two waits for what it sets: while a
+//! magnetometer stream exists but none of its samples has reached the
+//! horizon, fixes are answered [`GpsOutcome::Waiting`]; when the aligning
+//! fix moves faster than [`MOVING_SPEED_M_S`], the tilt standard deviation
+//! is raised to [`MOVING_TILT_STD_RAD`] (the accelerometer is not the
+//! vertical in a turn) and GPS velocity resolves it. The output state
+//! starts from the horizon state at that moment; the present estimate is
+//! `None` until the horizon has reached the first stored output state (one
+//! delay later) and corrected it. [`DelayCompensatedNav::alignment`] and
+//! [`DelayCompensatedNav::health`] report where it stands.
+//!
+//! # Timestamps
+//! The history is read by time, not with a mean period (`timeline.rs`):
+//! rate changes, dropped samples and jitter read the right sample. Clock
+//! faults are refused and counted without blocking a stream; a clock that
+//! went back needs [`DelayCompensatedNav::reset`].
 //!
 //! # Fixed mode
 //! [`DelayMode::Fixed`] is the same type with the loop off and `tau` given:
@@ -108,7 +121,7 @@ use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
 use crate::scalar::Scalar;
 use crate::sensors::{
-    GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
+    GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
@@ -162,6 +175,9 @@ pub struct NavRefusals {
     pub gps_accuracy: u32,
     /// GPS fixes stamped more than `max_time_jump_us` after the newest IMU sample.
     pub gps_ahead: u32,
+    /// GPS fixes whose position kind (geodetic or NED) differs from the first
+    /// accepted fix's.
+    pub gps_mixed_frames: u32,
     /// Magnetometer samples with a non-finite or zero field.
     pub mag_invalid: u32,
     /// Magnetometer samples duplicated or going back in time.
@@ -292,6 +308,8 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     retained_biases: Option<(SVector<T, 6>, SVector<T, 6>)>,
     /// A magnetometer sample has reached the horizon EKF since the start.
     mag_at_horizon: bool,
+    /// Whether the accepted fixes are geodetic (`Some(true)`) or NED.
+    geodetic_fixes: Option<bool>,
     last_update: Option<DelayUpdate<T>>,
     present_accel: Vector3<T>,
     refusals: NavRefusals,
@@ -341,6 +359,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             valid_delay_updates: 0,
             retained_biases: None,
             mag_at_horizon: false,
+            geodetic_fixes: None,
             last_update: None,
             present_accel: Vector3::zeros(),
             refusals: NavRefusals::default(),
@@ -485,6 +504,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.last_update = None;
         self.valid_delay_updates = 0;
         self.mag_at_horizon = false;
+        self.geodetic_fixes = None;
         self.present_accel = Vector3::zeros();
     }
 
@@ -833,6 +853,14 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 reason: "beyond the plausible range",
             });
         }
+        let geodetic = matches!(fix.position, GpsPosition::Geodetic(_));
+        if self.geodetic_fixes.is_some_and(|g| g != geodetic) {
+            bump(&mut self.refusals.gps_mixed_frames);
+            return Err(Error::OutOfRange {
+                field: "gps.position",
+                reason: "geodetic and NED fixes cannot be mixed in one run",
+            });
+        }
         let newest_imu = self.imu_clock.last();
         let max_jump = self.config.max_time_jump_us;
         let mut clock = self.gps_clock;
@@ -860,6 +888,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         let outcome = self.ekf.push_gps(&fix)?;
         self.gps_clock = clock;
+        self.geodetic_fixes = Some(geodetic);
         if self.is_estimating() {
             match self.delay_loop.push_gps(fix.t_us, fix.velocity_ned_m_s) {
                 Ok(Some(update)) => {

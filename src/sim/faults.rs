@@ -19,7 +19,7 @@
 //! clock went back), the quantity measured ([`Metric`]), its limit, and the
 //! run it is compared with ([`Reference`]). [`run_trace`] feeds a run to any
 //! [`Navigator`] and records, per IMU sample, the rotation-vector tilt and
-//! heading errors ([`tilt_heading_error_rad`](super::tilt_heading_error_rad))
+//! heading errors ([`tilt_heading_error_rad`])
 //! and the horizontal position; [`evaluate`] turns a trace (and the
 //! reference's) into a [`FaultResult`]. The `reproduce` example runs it
 //! (`--faults`); `docs/faults.md` has the table.
