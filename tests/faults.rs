@@ -188,14 +188,11 @@ fn magnetic_faults_turn_and_delay_the_field() {
 fn nav(sim: &SimConfig) -> DelayCompensatedNav<f64> {
     let s = &sim.sensors;
     let g2 = delaynav::sim::STANDARD_GRAVITY.powi(2);
+    // The sensors' own noise and field; GPS noise from the fixes' accuracies.
     DelayCompensatedNav::new(NavConfig {
         ekf: Ekf16Config {
             mag_inclination_rad: s.inclination_rad,
             mag_declination_rad: s.declination_rad,
-            mag_noise_variance: s.mag_noise_var,
-            gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
-            gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
-            gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
             ..Ekf16Config::with_per_sample_imu_variances(
                 s.gyro_noise_var_rad2_s2,
                 s.accel_noise_var_g2 * g2,

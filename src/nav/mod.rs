@@ -214,6 +214,23 @@ fn bump(counter: &mut u32) {
     *counter = counter.saturating_add(1);
 }
 
+/// A clock check's outcome with its refusal counted: `ahead` for a
+/// timestamp too far ahead, `time` for a duplicate or one going back.
+fn counted(
+    check: Result<(), (ClockRefusal, Error)>,
+    ahead: &mut u32,
+    time: &mut u32,
+) -> Result<(), Error> {
+    check.map_err(|(why, e)| {
+        bump(if why == ClockRefusal::Ahead {
+            ahead
+        } else {
+            time
+        });
+        e
+    })
+}
+
 /// Either a whitening FIR or nothing.
 #[derive(Debug, Clone)]
 struct Whitening<T: Scalar> {
@@ -748,15 +765,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             });
         }
         let max_jump = self.config.max_time_jump_us;
-        self.imu_clock
-            .check("imu", "imu.time", s.t_us, None, max_jump)
-            .map_err(|(why, e)| {
-                bump(match why {
-                    ClockRefusal::Ahead => &mut self.refusals.imu_ahead,
-                    _ => &mut self.refusals.imu_time,
-                });
-                e
-            })?;
+        counted(
+            self.imu_clock
+                .check("imu", "imu.time", s.t_us, None, max_jump),
+            &mut self.refusals.imu_ahead,
+            &mut self.refusals.imu_time,
+        )?;
         Ok(s)
     }
 }
@@ -864,21 +878,17 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let newest_imu = self.imu_clock.last();
         let max_jump = self.config.max_time_jump_us;
         let mut clock = self.gps_clock;
-        clock
-            .check(
+        counted(
+            clock.check(
                 "gps",
                 "gps.time",
                 fix.t_us,
                 newest_imu.or(Some(fix.t_us)),
                 max_jump,
-            )
-            .map_err(|(why, e)| {
-                bump(match why {
-                    ClockRefusal::Ahead => &mut self.refusals.gps_ahead,
-                    _ => &mut self.refusals.gps_time,
-                });
-                e
-            })?;
+            ),
+            &mut self.refusals.gps_ahead,
+            &mut self.refusals.gps_time,
+        )?;
         self.advance_horizon_to_fix(fix.t_us);
         if !self.ekf.is_initialized() && self.mag_clock.last().is_some() && !self.mag_at_horizon {
             // Alignment waits for what it sets: the heading needs a
@@ -916,15 +926,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         let newest_imu = self.imu_clock.last().or(Some(m.t_us));
         let max_jump = self.config.max_time_jump_us;
-        self.mag_clock
-            .check("mag", "mag.time", m.t_us, newest_imu, max_jump)
-            .map_err(|(why, e)| {
-                bump(match why {
-                    ClockRefusal::Ahead => &mut self.refusals.mag_ahead,
-                    _ => &mut self.refusals.mag_time,
-                });
-                e
-            })?;
+        counted(
+            self.mag_clock
+                .check("mag", "mag.time", m.t_us, newest_imu, max_jump),
+            &mut self.refusals.mag_ahead,
+            &mut self.refusals.mag_time,
+        )?;
         if self.mags.len() == MAG_QUEUE {
             bump(&mut self.refusals.mag_dropped);
         }
