@@ -9,6 +9,7 @@
 //! cargo run --release --features sim --example reproduce              # everything
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
+//! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! ```
 //!
 //! Every figure is the median over the seeds of one run's RMSE, counted
@@ -21,6 +22,8 @@
 //!
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
+
+mod faults;
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
@@ -87,6 +90,9 @@ struct Args {
     /// offline calibration on a separate run (sec. 2.2.2).
     #[arg(long)]
     no_calibration: bool,
+    /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
+    #[arg(long)]
+    faults: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -1068,6 +1074,17 @@ impl Progress {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    if args.faults {
+        let scale = args.duration.unwrap_or(60.0) / 60.0;
+        let results = faults::run(args.seed, scale);
+        if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let json = faults::to_json(&results, args.seed, scale);
+        std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
+        eprintln!("wrote {}", args.json.display());
+        return Ok(());
+    }
     let seeds_n = args.seeds.unwrap_or(if args.quick { 2 } else { 5 });
     let duration_s = args
         .duration
