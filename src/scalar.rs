@@ -18,6 +18,11 @@ pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
     fn as_f64(self) -> f64;
     /// Machine epsilon of the precision.
     const EPS: Self;
+    /// Largest rotation angle (radians) for which
+    /// [`quaternion_from_rotation_vector`](crate::geo::quaternion_from_rotation_vector)
+    /// uses its series instead of `sin`/`cos`: where the first neglected
+    /// term stays below half an ulp of 1 (1 rad in f32, 0.2 rad in f64).
+    const SMALL_ROTATION_MAX_RAD: f64;
 }
 
 impl Scalar for f32 {
@@ -30,6 +35,7 @@ impl Scalar for f32 {
         self as f64
     }
     const EPS: Self = f32::EPSILON;
+    const SMALL_ROTATION_MAX_RAD: f64 = 1.0;
 }
 
 impl Scalar for f64 {
@@ -42,6 +48,7 @@ impl Scalar for f64 {
         self
     }
     const EPS: Self = f64::EPSILON;
+    const SMALL_ROTATION_MAX_RAD: f64 = 0.2;
 }
 
 /// Microseconds to seconds, in `T`. Timestamps stay integer microseconds
