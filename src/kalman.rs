@@ -42,7 +42,7 @@
 
 use crate::error::Error;
 use crate::estimate::FusionRecord;
-use crate::scalar::{Scalar, all_finite};
+use crate::scalar::{Scalar, all_finite_fixed};
 use nalgebra::{SMatrix, SVector};
 
 /// Chi-square threshold for 3 degrees of freedom with the tail probability of
@@ -167,7 +167,7 @@ pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
     }
     let x_new = *x + k * innovation;
     let p_new = joseph_covariance(p, h, r, &k, &pht, support);
-    if !(all_finite(&x_new) && all_finite(&p_new)) {
+    if !(all_finite_fixed(&x_new) && all_finite_fixed(&p_new)) {
         record.test_ratio = T::lit(f64::INFINITY);
         return Ok(record);
     }
@@ -206,18 +206,18 @@ fn joseph_covariance<T: Scalar, const N: usize, const M: usize>(
             z.column_mut(m).axpy(-h[(m, c)], &lp.column(c), T::one());
         }
     }
-    let mut out = lp;
+    // In place: each step reads the lower triangle, which no earlier step wrote.
     for j in 0..N {
         for i in j..N {
             let mut v = lp[(i, j)];
             for m in 0..M {
                 v += z[(i, m)] * k[(j, m)];
             }
-            out[(i, j)] = v;
-            out[(j, i)] = v;
+            lp[(i, j)] = v;
+            lp[(j, i)] = v;
         }
     }
-    out
+    lp
 }
 
 #[cfg(test)]

@@ -65,7 +65,7 @@ use crate::geo::{
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
 };
 use crate::kalman;
-use crate::scalar::{Scalar, all_finite, us_to_s};
+use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s};
 use crate::sensors::{
     GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
     checked_mag,
@@ -497,7 +497,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                     &self.config,
                     &self.extra_intensity,
                 );
-                if all_finite(&p) {
+                if all_finite_fixed(&p) {
                     self.p = p;
                 }
             } else {
@@ -537,7 +537,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let mut x = self.x;
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
         project_quaternion_covariance(&mut p, &x);
-        if !(all_finite(&x) && all_finite(&p)) {
+        if !(all_finite_fixed(&x) && all_finite_fixed(&p)) {
             bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu",
@@ -642,7 +642,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = sq(c.initial_accel_bias_std_m_s2);
             p[(GYRO_BIAS + i, GYRO_BIAS + i)] = sq(c.initial_gyro_bias_std_rad_s);
         }
-        if !(all_finite(&x) && all_finite(&p)) {
+        if !(all_finite_fixed(&x) && all_finite_fixed(&p)) {
             return Err(Error::NonFinite {
                 field: "initial state",
             });
