@@ -23,6 +23,8 @@ pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
     /// uses its series instead of `sin`/`cos`: where the first neglected
     /// term stays below half an ulp of 1 (1 rad in f32, 0.2 rad in f64).
     const SMALL_ROTATION_MAX_RAD: f64;
+    /// Integer microseconds as seconds, rounded to nearest (see [`us_to_s`]).
+    fn seconds_from_us(us: u64) -> Self;
 }
 
 impl Scalar for f32 {
@@ -36,6 +38,18 @@ impl Scalar for f32 {
     }
     const EPS: Self = f32::EPSILON;
     const SMALL_ROTATION_MAX_RAD: f64 = 1.0;
+    #[inline]
+    fn seconds_from_us(us: u64) -> Self {
+        // Below 2^24 µs (16.7 s: every step length) the integer is exact in
+        // f32 and the division by the exact 1e6 rounds once, all in
+        // hardware f32; the f64 route costs a software double on an FPU
+        // without f64.
+        if us < 1 << 24 {
+            us as u32 as f32 / 1e6
+        } else {
+            (us as f64 * 1e-6) as f32
+        }
+    }
 }
 
 impl Scalar for f64 {
@@ -49,13 +63,17 @@ impl Scalar for f64 {
     }
     const EPS: Self = f64::EPSILON;
     const SMALL_ROTATION_MAX_RAD: f64 = 0.2;
+    #[inline]
+    fn seconds_from_us(us: u64) -> Self {
+        us as f64 * 1e-6
+    }
 }
 
 /// Microseconds to seconds, in `T`. Timestamps stay integer microseconds
 /// (`u64`) everywhere; only *differences* of timestamps become floats.
 #[inline]
 pub fn us_to_s<T: Scalar>(us: u64) -> T {
-    T::lit(us as f64 * 1e-6)
+    T::seconds_from_us(us)
 }
 
 /// Seconds to integer microseconds, rounded to nearest; negative and

@@ -378,3 +378,18 @@ fn small_rotation_is_exact_to_rounding_f32() {
 fn small_rotation_is_exact_to_rounding_f64() {
     small_rotation_is_exact_to_rounding::<f64>();
 }
+
+/// Step lengths in f32 go through hardware f32 only and are still the
+/// correctly rounded `us / 1e6` (the f64 route's result), up to 2^24 µs.
+#[test]
+fn f32_step_lengths_are_correctly_rounded() {
+    for us in (0..1u64 << 24)
+        .step_by(997)
+        .chain([1, 999, 1000, 1001, 2500, (1 << 24) - 1])
+    {
+        let expected = (us as f64 / 1e6) as f32;
+        assert_eq!(delaynav::scalar::us_to_s::<f32>(us), expected, "{us} us");
+    }
+    assert_eq!(delaynav::scalar::us_to_s::<f32>(1 << 30), 1073.741824f32);
+    assert_eq!(delaynav::scalar::us_to_s::<f64>(1500), 1.5e-3);
+}
