@@ -390,6 +390,9 @@ fn f32_step_lengths_are_correctly_rounded() {
         let expected = (us as f64 / 1e6) as f32;
         assert_eq!(delaynav::scalar::us_to_s::<f32>(us), expected, "{us} us");
     }
-    assert_eq!(delaynav::scalar::us_to_s::<f32>(1 << 30), 1073.741824f32);
+    assert_eq!(
+        delaynav::scalar::us_to_s::<f32>(1 << 30),
+        1_073.741_824_f64 as f32
+    );
     assert_eq!(delaynav::scalar::us_to_s::<f64>(1500), 1.5e-3);
 }
