@@ -49,6 +49,38 @@ fn v<T: Scalar>(x: &Vector3<f64>) -> Vector3<T> {
     x.map(T::lit)
 }
 
+/// A simulated IMU sample in `T`.
+fn imu_sample<T: Scalar>(s: &Imu<f64>) -> Imu<T> {
+    Imu {
+        t_us: s.t_us,
+        gyro_rad_s: v(&s.gyro_rad_s),
+        accel_m_s2: v(&s.accel_m_s2),
+    }
+}
+
+/// A simulated magnetometer sample in `T`.
+fn mag_sample<T: Scalar>(m: &Mag<f64>) -> Mag<T> {
+    Mag {
+        t_us: m.t_us,
+        field_body: v(&m.field_body),
+    }
+}
+
+/// A simulated fix in `T`, with the configured noise (no receiver accuracies).
+fn gps_fix<T: Scalar>(fix: &Gps<f64>) -> Gps<T> {
+    let GpsPosition::Ned(p) = fix.position else {
+        panic!("the simulator reports NED by default")
+    };
+    Gps {
+        t_us: fix.t_us,
+        position: GpsPosition::Ned(v(&p)),
+        velocity_ned_m_s: v(&fix.velocity_ned_m_s),
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    }
+}
+
 /// Errors of one run, from `score_from_s` on.
 #[derive(Debug, Default)]
 struct RunErrors {
@@ -101,11 +133,7 @@ fn fly<T: Scalar>(sim: &SimConfig, filter: Ekf16Config<T>, score_from_s: f64) ->
     for event in Simulation::new(sim.clone()).expect("valid sim config") {
         match event {
             SimEvent::Imu { sample, truth } => {
-                let imu = Imu {
-                    t_us: sample.t_us,
-                    gyro_rad_s: v(&sample.gyro_rad_s),
-                    accel_m_s2: v(&sample.accel_m_s2),
-                };
+                let imu = imu_sample::<T>(&sample);
                 nav.push_imu(&imu).expect("plausible IMU sample");
                 if (truth.t_us as f64) < score_from_s * 1e6 {
                     continue;
@@ -131,10 +159,7 @@ fn fly<T: Scalar>(sim: &SimConfig, filter: Ekf16Config<T>, score_from_s: f64) ->
                 out.rms_gyro_z_bias += bias_err * bias_err;
             }
             SimEvent::Mag(m) => {
-                let mag = Mag {
-                    t_us: m.t_us,
-                    field_body: v(&m.field_body),
-                };
+                let mag = mag_sample::<T>(&m);
                 if let Ok(MagOutcome::Fused(rec)) = nav.push_mag(&mag)
                     && rec.fused
                 {
@@ -143,17 +168,7 @@ fn fly<T: Scalar>(sim: &SimConfig, filter: Ekf16Config<T>, score_from_s: f64) ->
                 }
             }
             SimEvent::Gps { fix, .. } => {
-                let GpsPosition::Ned(p) = fix.position else {
-                    panic!("the simulator reports NED by default")
-                };
-                let gps = Gps {
-                    t_us: fix.t_us,
-                    position: GpsPosition::Ned(v(&p)),
-                    velocity_ned_m_s: v(&fix.velocity_ned_m_s),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
+                let gps = gps_fix::<T>(&fix);
                 let _ = nav.push_gps(&gps);
             }
         }
@@ -269,11 +284,7 @@ fn f32_covariances_stay_symmetric_psd_over_100k_simulated_steps() {
     for event in Simulation::new(sim).unwrap() {
         match event {
             SimEvent::Imu { sample, .. } => {
-                let imu = Imu {
-                    t_us: sample.t_us,
-                    gyro_rad_s: v(&sample.gyro_rad_s),
-                    accel_m_s2: v(&sample.accel_m_s2),
-                };
+                let imu = imu_sample::<f32>(&sample);
                 ekf.push_imu(&imu).unwrap();
                 aekf.push_imu(&imu).unwrap();
                 steps += 1;
@@ -286,25 +297,12 @@ fn f32_covariances_stay_symmetric_psd_over_100k_simulated_steps() {
                 }
             }
             SimEvent::Mag(m) => {
-                let mag = Mag {
-                    t_us: m.t_us,
-                    field_body: v(&m.field_body),
-                };
+                let mag = mag_sample::<f32>(&m);
                 let _ = ekf.push_mag(&mag);
                 let _ = aekf.push_mag(&mag);
             }
             SimEvent::Gps { fix, .. } => {
-                let GpsPosition::Ned(p) = fix.position else {
-                    panic!("the simulator reports NED by default")
-                };
-                let gps = Gps {
-                    t_us: fix.t_us,
-                    position: GpsPosition::Ned(v(&p)),
-                    velocity_ned_m_s: v(&fix.velocity_ned_m_s),
-                    horizontal_accuracy_m: None,
-                    vertical_accuracy_m: None,
-                    speed_accuracy_m_s: None,
-                };
+                let gps = gps_fix::<f32>(&fix);
                 let _ = ekf.push_gps(&gps);
                 let _ = aekf.push_gps(&gps);
             }

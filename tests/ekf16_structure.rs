@@ -101,6 +101,31 @@ fn dense_prediction<const N: usize>(
     a * p * a.transpose() + process::discretize_noise(&f, &intensity, dt)
 }
 
+/// One test per precision and state count (16, 17) with the tolerance of
+/// each precision.
+macro_rules! precision_cases {
+    ($check:ident, f64 = $tol64:expr, f32 = $tol32:expr) => {
+        mod $check {
+            #[test]
+            fn f64_16() {
+                super::$check::<f64, 16>($tol64);
+            }
+            #[test]
+            fn f64_17() {
+                super::$check::<f64, 17>($tol64);
+            }
+            #[test]
+            fn f32_16() {
+                super::$check::<f32, 16>($tol32);
+            }
+            #[test]
+            fn f32_17() {
+                super::$check::<f32, 17>($tol32);
+            }
+        }
+    };
+}
+
 /// `max |a - b| / max |b|`.
 fn relative_error<const R: usize, const C: usize>(
     a: &SMatrix<f64, R, C>,
@@ -202,25 +227,7 @@ fn structured_prediction_matches_dense<T: Scalar, const N: usize>(tol: f64) {
     );
 }
 
-#[test]
-fn structured_prediction_matches_dense_f64_16() {
-    structured_prediction_matches_dense::<f64, 16>(1e-14);
-}
-
-#[test]
-fn structured_prediction_matches_dense_f64_17() {
-    structured_prediction_matches_dense::<f64, 17>(1e-14);
-}
-
-#[test]
-fn structured_prediction_matches_dense_f32_16() {
-    structured_prediction_matches_dense::<f32, 16>(2e-6);
-}
-
-#[test]
-fn structured_prediction_matches_dense_f32_17() {
-    structured_prediction_matches_dense::<f32, 17>(2e-6);
-}
+precision_cases!(structured_prediction_matches_dense, f64 = 1e-14, f32 = 2e-6);
 
 /// The dense Joseph update in f64: `(I - K H) P (I - K H)^T + K R K^T`.
 fn dense_joseph<const N: usize, const M: usize>(
@@ -314,25 +321,7 @@ fn sparse_joseph_matches_dense<T: Scalar, const N: usize>(tol: f64) {
     assert!(worst < tol, "sparse Joseph off by {worst:e}");
 }
 
-#[test]
-fn sparse_joseph_matches_dense_f64_16() {
-    sparse_joseph_matches_dense::<f64, 16>(1e-14);
-}
-
-#[test]
-fn sparse_joseph_matches_dense_f64_17() {
-    sparse_joseph_matches_dense::<f64, 17>(1e-14);
-}
-
-#[test]
-fn sparse_joseph_matches_dense_f32_16() {
-    sparse_joseph_matches_dense::<f32, 16>(2e-6);
-}
-
-#[test]
-fn sparse_joseph_matches_dense_f32_17() {
-    sparse_joseph_matches_dense::<f32, 17>(2e-6);
-}
+precision_cases!(sparse_joseph_matches_dense, f64 = 1e-14, f32 = 2e-6);
 
 /// The exact rotation `[cos(a/2), sin(a/2) u]` in f64.
 fn exact_rotation(theta: &Vector3<f64>) -> [f64; 4] {

@@ -255,15 +255,17 @@ impl<T: Scalar> JacobianBlocks<T> {
     }
 }
 
-/// Adds `block` (`R x C`, at rows `i0..`, columns `j0..`) to the symmetric
-/// `p` together with its mirror image: `p[J, I] += block^T`. A diagonal
-/// block (`i0 == j0`, `R == C`) contributes its lower triangle only, mirrored,
-/// so `p` stays exactly symmetric whatever rounding `block` carries.
-fn add_symmetric_block<T: Scalar, const N: usize, const R: usize, const C: usize>(
+/// Writes `block` (`R x C`, at rows `i0..`, columns `j0..`) into the
+/// symmetric `p` together with its mirror image `p[J, I] = p[I, J]^T`,
+/// adding to what is there (`accumulate`) or replacing it. A diagonal block
+/// (`i0 == j0`, `R == C`) contributes its lower triangle only, mirrored, so
+/// `p` stays exactly symmetric whatever rounding `block` carries.
+fn put_symmetric_block<T: Scalar, const N: usize, const R: usize, const C: usize>(
     p: &mut SMatrix<T, N, N>,
     i0: usize,
     j0: usize,
     block: &SMatrix<T, R, C>,
+    accumulate: bool,
 ) {
     for c in 0..C {
         for r in 0..R {
@@ -271,29 +273,13 @@ fn add_symmetric_block<T: Scalar, const N: usize, const R: usize, const C: usize
             if i0 == j0 && j > i {
                 continue;
             }
-            p[(i, j)] += block[(r, c)];
-            if i != j {
-                p[(j, i)] = p[(i, j)];
-            }
-        }
-    }
-}
-
-/// [`add_symmetric_block`] that replaces instead of adding.
-fn set_symmetric_block<T: Scalar, const N: usize, const R: usize, const C: usize>(
-    p: &mut SMatrix<T, N, N>,
-    i0: usize,
-    j0: usize,
-    block: &SMatrix<T, R, C>,
-) {
-    for c in 0..C {
-        for r in 0..R {
-            let (i, j) = (i0 + r, j0 + c);
-            if i0 == j0 && j > i {
-                continue;
-            }
-            p[(i, j)] = block[(r, c)];
-            p[(j, i)] = block[(r, c)];
+            let v = if accumulate {
+                p[(i, j)] + block[(r, c)]
+            } else {
+                block[(r, c)]
+            };
+            p[(i, j)] = v;
+            p[(j, i)] = v;
         }
     }
 }
@@ -340,16 +326,16 @@ fn add_noise_blocks<T: Scalar, const N: usize>(
     let q_qq = w_q * d1
         + (fqq_wq + fqq_wq.transpose()) * d2
         + (fqq_wq * jac.qq.transpose() + jac.q_bw * jac.q_bw.transpose() * bw2) * d3;
-    add_symmetric_block(p, QUAT, QUAT, &q_qq);
+    put_symmetric_block(p, QUAT, QUAT, &q_qq, true);
     let wq_jt = w_q * jac.v_q.transpose();
-    add_symmetric_block(p, QUAT, VEL, &(wq_jt * d2 + jac.qq * wq_jt * d3));
-    add_symmetric_block(p, QUAT, GYRO_BIAS, &(jac.q_bw * (bw2 * d2)));
-    add_symmetric_block(p, POS, POS, &(w_v * d3));
-    add_symmetric_block(p, POS, VEL, &(w_v * d2));
+    put_symmetric_block(p, QUAT, VEL, &(wq_jt * d2 + jac.qq * wq_jt * d3), true);
+    put_symmetric_block(p, QUAT, GYRO_BIAS, &(jac.q_bw * (bw2 * d2)), true);
+    put_symmetric_block(p, POS, POS, &(w_v * d3), true);
+    put_symmetric_block(p, POS, VEL, &(w_v * d2), true);
     let q_vv =
         w_v * d1 + (jac.v_q * w_q * jac.v_q.transpose() + jac.rot * jac.rot.transpose() * bf2) * d3;
-    add_symmetric_block(p, VEL, VEL, &q_vv);
-    add_symmetric_block(p, VEL, ACCEL_BIAS, &(jac.rot * (-bf2 * d2)));
+    put_symmetric_block(p, VEL, VEL, &q_vv, true);
+    put_symmetric_block(p, VEL, ACCEL_BIAS, &(jac.rot * (-bf2 * d2)), true);
     for i in 0..3 {
         p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] += bf2 * d1;
         p[(GYRO_BIAS + i, GYRO_BIAS + i)] += bw2 * d1;
@@ -464,12 +450,12 @@ pub fn predict_covariance<T: Scalar, const N: usize>(
     set_against_unchanged(&mut out, QUAT, &m_q);
     set_against_unchanged(&mut out, POS, &m_r);
     set_against_unchanged(&mut out, VEL, &m_v);
-    set_symmetric_block(&mut out, QUAT, QUAT, &a.col_q(&m_q));
-    set_symmetric_block(&mut out, POS, QUAT, &a.col_q(&m_r));
-    set_symmetric_block(&mut out, POS, POS, &a.col_r(&m_r));
-    set_symmetric_block(&mut out, VEL, QUAT, &a.col_q(&m_v));
-    set_symmetric_block(&mut out, VEL, POS, &a.col_r(&m_v));
-    set_symmetric_block(&mut out, VEL, VEL, &a.col_v(&m_v));
+    put_symmetric_block(&mut out, QUAT, QUAT, &a.col_q(&m_q), false);
+    put_symmetric_block(&mut out, POS, QUAT, &a.col_q(&m_r), false);
+    put_symmetric_block(&mut out, POS, POS, &a.col_r(&m_r), false);
+    put_symmetric_block(&mut out, VEL, QUAT, &a.col_q(&m_v), false);
+    put_symmetric_block(&mut out, VEL, POS, &a.col_r(&m_v), false);
+    put_symmetric_block(&mut out, VEL, VEL, &a.col_v(&m_v), false);
     add_noise_blocks(&mut out, &jac, x, dt, config, extra_intensity);
     out
 }
