@@ -9,6 +9,7 @@
 //! cargo run --release --features sim --example reproduce              # everything
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
+//! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # issue 11's delay suite
 //! ```
 //!
 //! Every figure is the median over the seeds of one run's RMSE, counted
@@ -21,6 +22,8 @@
 //!
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
+
+pub(crate) mod delay_suite;
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
@@ -87,6 +90,10 @@ struct Args {
     /// offline calibration on a separate run (sec. 2.2.2).
     #[arg(long)]
     no_calibration: bool,
+    /// Run the delay suite of issue 11 instead (see `delay_suite.rs`); writes
+    /// `delay_scenarios` to the JSON file.
+    #[arg(long)]
+    delay_suite: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -1092,6 +1099,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
+    if args.delay_suite {
+        let options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        let rows = delay_suite::run(&options);
+        if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let json = delay_suite::to_json(&rows, &options);
+        std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
+        eprintln!("wrote {}", args.json.display());
+        return Ok(());
+    }
     let seeds: Vec<u64> = (args.seed..args.seed + seeds_n).collect();
     let mut progress = Progress {
         done: 0,
