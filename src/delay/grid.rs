@@ -259,7 +259,13 @@ pub(crate) fn grid_samples<T: Scalar>(seconds: T, period_us: u64) -> usize {
 
 /// A duration of either sign in grid samples, rounded to nearest.
 pub(crate) fn signed_grid_samples<T: Scalar>(seconds: T, period_us: u64) -> i64 {
-    (seconds.as_f64() * 1e6 / period_us as f64).round() as i64
+    let samples = seconds.as_f64() * 1e6 / period_us as f64;
+    // `f64::round` needs std: round half away from zero by hand.
+    if samples >= 0.0 {
+        (samples + 0.5) as i64
+    } else {
+        -((-samples + 0.5) as i64)
+    }
 }
 
 /// How far, in grid samples, the IMU grid stream can run ahead of the GPS
