@@ -10,8 +10,8 @@ use delaynav::Error;
 use delaynav::delay::*;
 use nalgebra::Vector3;
 
-/// (time s, delay s, status) per update.
-type Updates<T> = Vec<(f64, f64, DelayStatus<T>)>;
+/// (time s, delay s, status, std s) per update.
+type Updates<T> = Vec<(f64, f64, DelayStatus<T>, f64)>;
 
 macro_rules! status_tests {
     ($mod:ident, $t:ty) => {
@@ -38,7 +38,7 @@ macro_rules! status_tests {
                         Event::Gps(t, v) => {
                             if let Some(u) = delay_loop.push_gps(t, v3(v)).unwrap() {
                                 assert_eq!(u.status, delay_loop.status());
-                                updates.push((t as f64 * 1e-6, u.delay_s as f64, u.status));
+                                updates.push((t as f64 * 1e-6, u.delay_s as f64, u.status, u.delay_std_s as f64));
                             }
                         }
                     }
@@ -83,6 +83,27 @@ macro_rules! status_tests {
                 assert!(!hover.is_empty());
                 assert!(hover.iter().all(|u| u.2 == DelayStatus::WaitingForMotion));
                 assert!(hover.iter().all(|u| u.1 == 0.1 as T as f64));
+            }
+
+            /// The reported sigma, matched to the innovations once locked,
+            /// covers a fair share of the errors: neither the GFA model's
+            /// pessimism (nearly every error inside) nor overconfidence.
+            #[test]
+            fn reported_sigma_covers_the_errors() {
+                let mut scenario = Scenario::simulator();
+                scenario.duration_s = 120.0;
+                let (mut inside, mut total) = (0usize, 0usize);
+                for seed in 1..=4u64 {
+                    scenario.seed = seed;
+                    let updates = run(&scenario, &strong_motion(40 + seed), |_| 0.2, config(0.2, (0.0, 1.0)));
+                    for u in updates.iter().filter(|u| u.0 >= 30.0) {
+                        inside += usize::from((u.1 - 0.2).abs() <= u.3);
+                        total += 1;
+                    }
+                }
+                let coverage = inside as f64 / total as f64;
+                println!("1-sigma coverage {coverage:.3}");
+                assert!((0.4..=0.95).contains(&coverage), "{coverage}");
             }
 
             /// A negative delay (the GPS leads the IMU) inside a range that

@@ -253,11 +253,11 @@ impl<T: Scalar> DelayLoopConfig<T> {
     ///   IMU history still holds the buffer, the shifts and the longer lead
     ///   of the IMU stream over the GPS one;
     /// - the smoothing of both accelerations follows the rate,
-    ///   `min(1 Hz, rate / 5)`: the GPS difference is already the mean
+    ///   `min(1 Hz, rate / 2.5)`: the GPS difference is already the mean
     ///   acceleration over its span (a box of `n / rate` seconds, then the
     ///   interpolation's triangle), and the IMU side must see the same
     ///   averaging for the correlation peak to stay high; a common low-pass
-    ///   well below `rate / n` dominates both;
+    ///   near `rate / n` dominates both;
     /// - the buffer holds at least 10 fix intervals: `max(5 s, 10 / rate)`
     ///   (at most 10 s).
     ///
@@ -273,7 +273,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
         self.max_gps_gap_s = T::lit(2.2) / gps_rate_hz;
         self.gps_diff_span = if slow { 1 } else { 2 };
         self.correlation_rate_hz = T::lit(if slow { 25.0 } else { 50.0 });
-        self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(5.0)).min(T::one());
+        self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
         self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
         self.validate()?;
         Ok(self)
@@ -447,6 +447,14 @@ impl<T: Scalar> DelayStatus<T> {
     }
 }
 
+/// Time constant of the innovation match that scales the reported sigma, s
+/// (two independent 5 s buffers; the first valid window sets it).
+pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
+
+/// Smallest squared scale of the reported sigma (the scale never exceeds 1:
+/// it only removes the pessimism of the noise model).
+pub const SIGMA_SCALE2_MIN: f64 = 0.01;
+
 /// Peaks of moving axes sitting on one edge of the shift window.
 #[derive(Debug, Clone, Copy)]
 struct EdgeRun<T: Scalar> {
@@ -506,6 +514,8 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     restarts: u32,
     offset_samples: u64,
     shift_min: usize,
+    innovation_ratio: T,
+    innovations_matched: bool,
     locked: bool,
     following: bool,
     stable_since_us: Option<u64>,
@@ -551,6 +561,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             restarts: 0,
             offset_samples: sizes.offset as u64,
             shift_min: sizes.shift_min,
+            innovation_ratio: T::one(),
+            innovations_matched: false,
             locked: config.fusion.initial_std_s <= config.lock_std_s,
             following: false,
             stable_since_us: None,
@@ -574,9 +586,24 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.fusion.delay_s()
     }
 
-    /// Standard deviation of the estimate as the GFA sees it, s.
+    /// Standard deviation of the estimate, s: the GFA's `sqrt(P)` scaled by
+    /// the innovation match (see [`SIGMA_MATCH_TIME_S`]) once locked, so
+    /// that it describes the errors the loop actually makes rather than its
+    /// noise model's.
     pub fn delay_std_s(&self) -> T {
-        self.fusion.variance_s2().sqrt()
+        (self.fusion.variance_s2() * self.sigma_scale2()).sqrt()
+    }
+
+    /// The squared scale applied to the GFA's variance: the mean normalized
+    /// innovation squared while locked (1 before), within
+    /// `[SIGMA_SCALE2_MIN, 1]`.
+    fn sigma_scale2(&self) -> T {
+        if self.locked && !self.following {
+            self.innovation_ratio
+                .clamp(T::lit(SIGMA_SCALE2_MIN), T::one())
+        } else {
+            T::one()
+        }
     }
 
     /// Eq. (15) for the current estimate and the whitening filters' group
@@ -704,6 +731,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         });
         let q_s2 = self.config.process_noise_ms2_per_s * ms2 * dt_s;
         let r_s2 = r_buffer_s2.map(|r| r * buffer_s / dt_s);
+        self.match_innovations(dt_s, q_s2, &z, &valid, &r_buffer_s2);
         let reacquired = !self.following && self.reacquire(t_us, &z, &valid, &r_buffer_s2);
         let gains = if self.following {
             self.follow(t_us, &z, &valid, &r_buffer_s2)
@@ -739,7 +767,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         Ok(Some(DelayUpdate {
             t_us,
             delay_s: self.fusion.delay_s(),
-            delay_std_s: self.fusion.variance_s2().sqrt(),
+            delay_std_s: self.delay_std_s(),
             reacquired,
             status: self.status,
             axes: core::array::from_fn(|axis| AxisUpdate {
@@ -749,6 +777,41 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 correlation: peaks[axis],
             }),
         }))
+    }
+
+    /// Covariance matching: the running mean, over [`SIGMA_MATCH_TIME_S`],
+    /// of the valid axes' squared innovations `(z_i - tau)^2` divided by their
+    /// predicted variance `P + Q + R_i` (one buffer's `R_i`: successive
+    /// windows share their data, so one window is one measurement of that
+    /// variance). Only while locked.
+    fn match_innovations(
+        &mut self,
+        dt_s: T,
+        q_s2: T,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) {
+        if !self.locked || self.following {
+            return;
+        }
+        let tau = self.fusion.delay_s();
+        let p = self.fusion.variance_s2() + q_s2;
+        let (mut sum, mut n) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let e = z[axis] - tau;
+            sum += e * e / (p + r_buffer_s2[axis]);
+            n += T::one();
+        }
+        if n > T::zero() {
+            let alpha = if self.innovations_matched {
+                (dt_s / T::lit(SIGMA_MATCH_TIME_S)).min(T::one())
+            } else {
+                T::one()
+            };
+            self.innovations_matched = true;
+            self.innovation_ratio += alpha * (sum / n - self.innovation_ratio);
+        }
     }
 
     /// Re-acquisition after a step (see [`DelayLoop::reacquire`]): the
