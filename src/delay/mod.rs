@@ -181,9 +181,10 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// 0 disables the scaling.
     pub reference_accel_variance_m2_s4: T,
     /// Re-acquisition threshold, in standard deviations `sqrt(P + R_i)`: when
-    /// at least two axes are valid and all of them disagree with the estimate
-    /// beyond it, on the same side, for `reacquire_after_s`, the estimate
-    /// restarts from their mean. 0 disables.
+    /// every valid axis (at least one) disagrees with the estimate beyond it,
+    /// on the same side, for `reacquire_after_s`, the estimate restarts from
+    /// their mean and follows the per-window measurements until they settle
+    /// (see [`DelayStatus::Acquiring`]). 0 disables.
     pub reacquire_sigma: T,
     /// How long the disagreement must last before re-acquiring, s.
     pub reacquire_after_s: T,
