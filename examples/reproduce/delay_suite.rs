@@ -180,32 +180,40 @@ impl DelayTrace {
     }
 }
 
+/// Feeds one event to an estimator (refusals are its business).
+fn feed<N: Navigator<f64>>(estimator: &mut N, event: &SimEvent) {
+    match event {
+        SimEvent::Imu { sample, .. } => {
+            let _ = estimator.push_imu(sample);
+        }
+        SimEvent::Mag(m) => {
+            let _ = estimator.push_mag(m);
+        }
+        SimEvent::Gps { fix, .. } => {
+            let _ = estimator.push_gps(fix);
+        }
+    }
+}
+
 /// Feeds a run to an estimator (refusals are its business) and records its
 /// delay estimate every [`TRACE_STEP_US`].
 fn trace<N: Navigator<f64>>(mut estimator: N, events: &[SimEvent]) -> DelayTrace {
     let mut out = DelayTrace::default();
     for event in events {
-        match event {
-            SimEvent::Imu { sample, truth } => {
-                let _ = estimator.push_imu(sample);
-                if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
-                    continue;
-                }
-                let est = estimator.estimate();
-                let delay = est.and_then(|e| e.delay_s).unwrap_or(f64::NAN);
-                let std = est.and_then(|e| e.delay_std_s).unwrap_or(f64::NAN);
-                out.t_s.push(truth.t_us as f64 * 1e-6);
-                out.estimate_s.push(delay);
-                out.std_s.push(std);
-                out.truth_s.push(truth.gps_delay_s);
-            }
-            SimEvent::Mag(m) => {
-                let _ = estimator.push_mag(m);
-            }
-            SimEvent::Gps { fix, .. } => {
-                let _ = estimator.push_gps(fix);
-            }
+        feed(&mut estimator, event);
+        let SimEvent::Imu { truth, .. } = event else {
+            continue;
+        };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
         }
+        let est = estimator.estimate();
+        out.t_s.push(truth.t_us as f64 * 1e-6);
+        out.estimate_s
+            .push(est.and_then(|e| e.delay_s).unwrap_or(f64::NAN));
+        out.std_s
+            .push(est.and_then(|e| e.delay_std_s).unwrap_or(f64::NAN));
+        out.truth_s.push(truth.gps_delay_s);
     }
     out
 }
@@ -383,25 +391,14 @@ pub fn run(options: &SuiteOptions) -> Vec<Row> {
     let constant =
         |scenario, delay_s| move |seed| sim(scenario, seed, DelayProfile::constant(delay_s));
     let rmse = "delay RMSE from 20 s, ms (median over seeds)";
-    if options.wants("cold_start_low") {
-        push(rmse_row(
-            "cold_start_low",
-            options,
-            constant(Scenario::Low, 0.2),
-            COLD,
-            6.0,
-            rmse,
-        ));
-    }
-    if options.wants("cold_start_high") {
-        push(rmse_row(
-            "cold_start_high",
-            options,
-            constant(Scenario::High, 0.2),
-            COLD,
-            4.0,
-            rmse,
-        ));
+    for (name, scenario, limit_ms) in [
+        ("cold_start_low", Scenario::Low, 6.0),
+        ("cold_start_high", Scenario::High, 4.0),
+    ] {
+        if options.wants(name) {
+            let config = constant(scenario, 0.2);
+            push(rmse_row(name, options, config, COLD, limit_ms, rmse));
+        }
     }
     if options.wants("delay_step") {
         let step = |seed| {
@@ -511,22 +508,13 @@ fn out_of_range_row(options: &SuiteOptions) -> Row {
         let config = sim(Scenario::High, seed, DelayProfile::constant(-0.15));
         let mut estimator = proposed(&config, COLD)?;
         for event in &events(&config) {
-            match event {
-                SimEvent::Imu { sample, .. } => {
-                    let _ = estimator.push_imu(sample);
-                }
-                SimEvent::Mag(m) => {
-                    let _ = estimator.push_mag(m);
-                }
-                SimEvent::Gps { fix, .. } => {
-                    let _ = estimator.push_gps(fix);
-                    if matches!(
-                        estimator.delay_loop().status(),
-                        DelayStatus::BelowRange { .. }
-                    ) {
-                        return Some(fix.t_us as f64 * 1e-6);
-                    }
-                }
+            feed(&mut estimator, event);
+            let below = matches!(
+                estimator.delay_loop().status(),
+                DelayStatus::BelowRange { .. }
+            );
+            if let (SimEvent::Gps { fix, .. }, true) = (event, below) {
+                return Some(fix.t_us as f64 * 1e-6);
             }
         }
         Some(f64::INFINITY)
