@@ -72,7 +72,9 @@ pub mod sensors;
 pub mod sim;
 
 pub use aekf17::{Aekf17Config, AugmentedEkf17};
-pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
+pub use delay::{
+    DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayStatus, DelayUpdate, SensorDelays,
+};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};

@@ -321,6 +321,7 @@ fn delay_profile_drift_steps_and_jitter_reach_the_fixes() {
             change_s: 0.1,
         }],
         jitter_std_s: 0.01,
+        ..DelayProfile::default()
     };
     let config = SimConfig {
         delay: delay.clone(),

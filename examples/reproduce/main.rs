@@ -10,6 +10,7 @@
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
+//! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # issue 11's delay suite
 //! ```
 //!
 //! Every figure is the median over the seeds of one run's RMSE, counted
@@ -23,6 +24,7 @@
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
 
+pub(crate) mod delay_suite;
 mod faults;
 
 use clap::{Parser, ValueEnum};
@@ -93,6 +95,10 @@ struct Args {
     /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
     #[arg(long)]
     faults: bool,
+    /// Run the delay suite of issue 11 instead (see `delay_suite.rs`); writes
+    /// `delay_scenarios` to the JSON file.
+    #[arg(long)]
+    delay_suite: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -1109,6 +1115,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
+    if args.delay_suite {
+        let options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        let rows = delay_suite::run(&options);
+        if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let json = delay_suite::to_json(&rows, &options);
+        std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
+        eprintln!("wrote {}", args.json.display());
+        return Ok(());
+    }
     let seeds: Vec<u64> = (args.seed..args.seed + seeds_n).collect();
     let mut progress = Progress {
         done: 0,

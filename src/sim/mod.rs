@@ -58,7 +58,7 @@ pub mod score;
 pub mod sensors;
 pub mod trajectory;
 
-pub use delay::{DelayProfile, DelayStep};
+pub use delay::{DelayProfile, DelayRamp, DelayStep};
 pub use faults::{Fault, FaultySimulation};
 pub use noise_floor::{NoiseFloor, noise_floor};
 pub use score::{attitude_error_ned_rad, tilt_heading_error_rad};
@@ -459,8 +459,8 @@ impl Simulation {
     fn gps_event(&mut self, t_us: u64) -> SimEvent {
         let t_s = t_us as f64 * 1e-6;
         let delay = &self.config.delay;
-        let jitter = if delay.jitter_std_s > 0.0 {
-            self.jitter_rng.next() * delay.jitter_std_s
+        let jitter = if delay.has_jitter() {
+            delay.jitter_s(self.jitter_rng.next())
         } else {
             0.0
         };
