@@ -13,8 +13,10 @@
 //!
 //! Every figure is the median over the seeds of one run's RMSE, counted
 //! after `skip_s` seconds (the convergence time). Attitude errors are the
-//! differences of ZYX Euler angles wrapped to (-180, 180] degrees;
-//! velocity and position errors are the RMS of the 3-D error norm; delay is
+//! differences of ZYX Euler angles wrapped to (-180, 180] degrees, and
+//! beside them the tilt and heading errors of the attitude error's rotation
+//! vector (`sim::tilt_heading_error_rad`, invariant to the vehicle's own
+//! attitude); velocity and position errors are the RMS of the 3-D error norm; delay is
 //! the RMS of estimate minus true delay; biases are per-axis RMS errors.
 //! `us_per_imu_sample` is the time spent inside the estimator's own
 //! `push_*` calls divided by the number of IMU samples.
@@ -29,7 +31,7 @@ use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
 use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
-    csv::write_run, delay_bound_s, noise_floor,
+    csv::write_run, delay_bound_s, noise_floor, tilt_heading_error_rad,
 };
 use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config};
 use serde_json::{Value, json};
@@ -165,6 +167,10 @@ struct Metrics {
     roll_deg: f64,
     pitch_deg: f64,
     yaw_deg: f64,
+    /// RMS of the rotation-vector tilt error (`sim::tilt_heading_error_rad`), degrees.
+    tilt_deg: f64,
+    /// RMS of the rotation-vector heading error, degrees.
+    heading_deg: f64,
     vel_m_s: f64,
     pos_m: f64,
     delay_s: Option<f64>,
@@ -309,6 +315,7 @@ impl Rms {
 /// estimate against the truth at every IMU sample after the skip.
 fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
     let mut euler = [Rms::default(); 3];
+    let (mut tilt, mut heading) = (Rms::default(), Rms::default());
     let (mut vel, mut pos, mut delay) = (Rms::default(), Rms::default(), Rms::default());
     let mut gyro_bias = [Rms::default(); 3];
     let mut accel_bias = [Rms::default(); 3];
@@ -359,6 +366,9 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
         if truth.t_us < setup.skip_us {
             continue;
         }
+        let (tilt_rad, heading_rad) = tilt_heading_error_rad(&est.attitude, &truth.attitude);
+        tilt.add(tilt_rad.to_degrees());
+        heading.add(heading_rad.to_degrees());
         for i in 0..3 {
             euler[i].add(err_deg[i]);
             gyro_bias[i].add(est.gyro_bias_rad_s[i] - truth.gyro_bias_rad_s[i]);
@@ -378,6 +388,8 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
         roll_deg: euler[0].value() + penalty,
         pitch_deg: euler[1].value() + penalty,
         yaw_deg: euler[2].value() + penalty,
+        tilt_deg: tilt.value() + penalty,
+        heading_deg: heading.value() + penalty,
         vel_m_s: vel.value() + penalty,
         pos_m: pos.value() + penalty,
         delay_s: has_delay.then(|| delay.value() + penalty),
@@ -409,6 +421,8 @@ fn summarize(runs: &[Metrics]) -> Metrics {
         roll_deg: m(&|r| r.roll_deg),
         pitch_deg: m(&|r| r.pitch_deg),
         yaw_deg: m(&|r| r.yaw_deg),
+        tilt_deg: m(&|r| r.tilt_deg),
+        heading_deg: m(&|r| r.heading_deg),
         vel_m_s: m(&|r| r.vel_m_s),
         pos_m: m(&|r| r.pos_m),
         delay_s: runs[0]
@@ -502,7 +516,7 @@ fn fmt_value(x: f64) -> String {
 type TableRow<'a> = (
     &'a str,
     &'a dyn Fn(&Metrics) -> Option<f64>,
-    (f64, f64),
+    Option<(f64, f64)>,
     String,
 );
 
@@ -546,23 +560,38 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         let _ = writeln!(out, "|---|{}---|---|---|", "---|".repeat(names.len()));
         let paper = paper_table6(r.scenario);
         let f = &r.floor_hover;
-        let rows: [TableRow; 6] = [
+        let rows: [TableRow; 8] = [
             (
                 "pitch (deg)",
                 &|s| Some(s.pitch_deg),
-                paper[0],
+                Some(paper[0]),
                 fmt_value(f.tilt_rad.to_degrees()),
             ),
             (
                 "roll (deg)",
                 &|s| Some(s.roll_deg),
-                paper[1],
+                Some(paper[1]),
                 fmt_value(f.tilt_rad.to_degrees()),
             ),
             (
                 "yaw (deg)",
                 &|s| Some(s.yaw_deg),
-                paper[2],
+                Some(paper[2]),
+                format!(
+                    "{} (mag only)",
+                    fmt_value(f.heading_mag_only_rad.to_degrees())
+                ),
+            ),
+            (
+                "tilt (deg)",
+                &|s| Some(s.tilt_deg),
+                None,
+                fmt_value(f.tilt_rad.to_degrees()),
+            ),
+            (
+                "heading (deg)",
+                &|s| Some(s.heading_deg),
+                None,
                 format!(
                     "{} (mag only)",
                     fmt_value(f.heading_mag_only_rad.to_degrees())
@@ -571,34 +600,35 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
             (
                 "velocity (m/s)",
                 &|s| Some(s.vel_m_s),
-                paper[3],
+                Some(paper[3]),
                 fmt_value(f.velocity_norm_m_s),
             ),
             (
                 "position (m)",
                 &|s| Some(s.pos_m),
-                paper[4],
+                Some(paper[4]),
                 fmt_value(f.position_norm_m),
             ),
             (
                 "delay (s)",
                 &|s| s.delay_s,
-                paper[5],
+                Some(paper[5]),
                 format!("{} (bound)", fmt_value(r.delay_bound_s)),
             ),
         ];
-        for (label, get, (p_prop, p_aekf), floor) in rows {
+        for (label, get, paper, floor) in rows {
             let ours: Vec<String> = r
                 .summaries
                 .iter()
                 .map(|(_, s)| get(s).map_or("-".into(), fmt_value))
                 .collect();
+            let (p_prop, p_aekf) = paper.map_or(("-".into(), "-".into()), |(p, a)| {
+                (fmt_value(p), fmt_value(a))
+            });
             let _ = writeln!(
                 out,
-                "| {label} | {} | {} | {} | {floor} |",
+                "| {label} | {} | {p_prop} | {p_aekf} | {floor} |",
                 ours.join(" | "),
-                fmt_value(p_prop),
-                fmt_value(p_aekf)
             );
         }
         let timing: Vec<String> = r
@@ -673,6 +703,8 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
                         "roll_deg": json_number(s.roll_deg),
                         "pitch_deg": json_number(s.pitch_deg),
                         "yaw_deg": json_number(s.yaw_deg),
+                        "tilt_deg": json_number(s.tilt_deg),
+                        "heading_deg": json_number(s.heading_deg),
                         "vel_m_s": json_number(s.vel_m_s),
                         "pos_m": json_number(s.pos_m),
                         "delay_s": s.delay_s.map_or(Value::Null, json_number),
