@@ -42,6 +42,7 @@ use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
 use delaynav::sensors::{Gps, GpsPosition, Imu, Mag};
 use delaynav::sim::Trajectory;
+use delaynav::sim::{BoundConfig, BoundRms, trajectory_bound};
 use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
     csv::write_run, delay_bound_s, noise_floor, tilt_heading_error_rad,
@@ -287,9 +288,51 @@ fn run_oracle<T: Scalar>(s: &RunSetup) -> RunScore {
     score(nav::<T>(&s.config, mode, None), s, nav_covariance)
 }
 
+/// The linearized bound of the run (`sim::trajectory_bound`) in the
+/// estimators' figures: the RMS over the scored samples of its per-time
+/// standard deviations.
+fn run_bound(s: &RunSetup) -> RunScore {
+    let started = Instant::now();
+    let bound = trajectory_bound(
+        &s.events,
+        &s.config,
+        &BoundConfig::for_sensors(&s.config.sensors),
+    )
+    .expect("valid bound config");
+    let busy = started.elapsed();
+    let rms = bound.rms_after(s.skip_us);
+    let nan = f64::NAN;
+    let g = |r: &BoundRms| r.accel_bias_m_s2 / STANDARD_GRAVITY;
+    let metrics = Metrics {
+        roll_deg: rms.map_or(nan, |r| r.euler_rad.x.to_degrees()),
+        pitch_deg: rms.map_or(nan, |r| r.euler_rad.y.to_degrees()),
+        yaw_deg: rms.map_or(nan, |r| r.euler_rad.z.to_degrees()),
+        tilt_deg: rms.map_or(nan, |r| r.tilt_rad.to_degrees()),
+        heading_deg: rms.map_or(nan, |r| r.heading_rad.to_degrees()),
+        vel_m_s: rms.map_or(nan, |r| r.velocity_m_s),
+        pos_m: rms.map_or(nan, |r| r.position_m),
+        delay_s: None,
+        gyro_bias_rad_s: rms.map_or([nan; 3], |r| r.gyro_bias_rad_s.into()),
+        accel_bias_g: rms.map_or([nan; 3], |r| g(&r).into()),
+        nees: None,
+        nis: None,
+        us_per_imu_sample: busy.as_secs_f64() * 1e6 / bound.samples.len().max(1) as f64,
+    };
+    RunScore {
+        metrics,
+        trace: Trace::default(),
+        nees_series: Vec::new(),
+        nis: (0.0, 0),
+    }
+}
+
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
     vec![
+        Estimator {
+            name: "bound",
+            run: run_bound,
+        },
         Estimator {
             name: "ekf16",
             run: run_ekf16::<f64>,
@@ -983,6 +1026,10 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         );
         let _ = writeln!(out, "|---|---|---|---|---|---|");
         for (name, c) in &r.consistency {
+            if c.nees_mean.is_nan() && c.nis_mean.is_nan() && c.nis_band.0.is_nan() {
+                // The bound: no estimate, no innovations.
+                continue;
+            }
             let _ = writeln!(
                 out,
                 "| {name} | {} | [{:.2}, {:.2}] | {:.0} % | {} | [{:.2}, {:.2}] |",
@@ -1110,7 +1157,9 @@ struct Panel<'a> {
 
 /// Line colours: the truth, then the estimators in registry order.
 const TRUTH_COLOR: &str = "#000000";
-const COLORS: [&str; 5] = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"];
+const COLORS: [&str; 8] = [
+    "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
+];
 
 /// A minimal SVG line plot: stacked panels sharing the time axis.
 fn svg_panels(title: &str, panels: &[Panel]) -> String {
@@ -1260,7 +1309,8 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
             y: r.truth_trace.iter().map(|p| p.2).collect(),
         }],
     };
-    for (k, (name, trace)) in r.traces.iter().enumerate() {
+    let plotted = r.traces.iter().filter(|(_, t)| !t.t_s.is_empty());
+    for (k, (name, trace)) in plotted.enumerate() {
         let color = COLORS[k % COLORS.len()];
         pitch.series.push(Series {
             name,
