@@ -56,7 +56,10 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
+mod fusion_nav;
 mod stats;
+
+use fusion_nav::FusionNav;
 
 /// Window of GPS fixes over which the delay bound counts information, µs.
 const DELAY_BOUND_WINDOW_US: u64 = 5_000_000;
@@ -348,6 +351,22 @@ fn estimators() -> Vec<Estimator> {
         Estimator {
             name: "oracle",
             run: run_oracle::<f64>,
+        },
+        Estimator {
+            name: "ekf16_f32",
+            run: run_ekf16::<f32>,
+        },
+        Estimator {
+            name: "aekf17_f32",
+            run: run_aekf17::<f32>,
+        },
+        Estimator {
+            name: "proposed_f32",
+            run: run_proposed::<f32>,
+        },
+        Estimator {
+            name: "fusion_nav",
+            run: |s| score::<f32, _>(FusionNav::new(&s.config), s, |_| None),
         },
     ]
 }

@@ -267,19 +267,31 @@ impl Model {
         }
         let r = from.rotation;
         let fx = skew(&from.specific_force_ned);
-        let mut f = Cov::zeros();
-        f.fixed_view_mut::<3, 3>(PHI, BG).copy_from(&(-r));
-        f.fixed_view_mut::<3, 3>(POS, VEL)
-            .copy_from(&Matrix3::identity());
-        f.fixed_view_mut::<3, 3>(VEL, PHI).copy_from(&(-fx));
-        f.fixed_view_mut::<3, 3>(VEL, BA).copy_from(&(-r));
-        let f2 = f * f;
-        let f3 = f2 * f;
-        let phi = Cov::identity() + f * dt + f2 * (dt * dt / 2.0) + f3 * (dt.powi(3) / 6.0);
-        let mut g = SMatrix::<f64, N, 6>::zeros();
-        g.fixed_view_mut::<3, 3>(PHI, 0).copy_from(&r);
-        g.fixed_view_mut::<3, 3>(VEL, 3).copy_from(&r);
-        let gamma = (Cov::identity() * dt + f * (dt * dt / 2.0) + f2 * (dt.powi(3) / 6.0)) * g;
+        let fxr = fx * r;
+        let (dt2, dt3) = (dt * dt / 2.0, dt.powi(3) / 6.0);
+        // Phi = I + F dt + F² dt²/2 + F³ dt³/6, written by blocks (F is
+        // nilpotent: F² and F³ have the few blocks below).
+        let mut phi = Cov::identity();
+        phi.fixed_view_mut::<3, 3>(PHI, BG).copy_from(&(-r * dt));
+        phi.fixed_view_mut::<3, 3>(POS, VEL)
+            .copy_from(&(Matrix3::identity() * dt));
+        phi.fixed_view_mut::<3, 3>(POS, PHI).copy_from(&(-fx * dt2));
+        phi.fixed_view_mut::<3, 3>(POS, BA).copy_from(&(-r * dt2));
+        phi.fixed_view_mut::<3, 3>(POS, BG).copy_from(&(fxr * dt3));
+        phi.fixed_view_mut::<3, 3>(VEL, PHI).copy_from(&(-fx * dt));
+        phi.fixed_view_mut::<3, 3>(VEL, BA).copy_from(&(-r * dt));
+        phi.fixed_view_mut::<3, 3>(VEL, BG).copy_from(&(fxr * dt2));
+        // Gamma = (I dt + F dt²/2 + F² dt³/6) G: gyro noise, then accelerometer.
+        let mut gamma = SMatrix::<f64, N, 6>::zeros();
+        gamma.fixed_view_mut::<3, 3>(PHI, 0).copy_from(&(r * dt));
+        gamma
+            .fixed_view_mut::<3, 3>(VEL, 0)
+            .copy_from(&(-fxr * dt2));
+        gamma
+            .fixed_view_mut::<3, 3>(POS, 0)
+            .copy_from(&(-fxr * dt3));
+        gamma.fixed_view_mut::<3, 3>(VEL, 3).copy_from(&(r * dt));
+        gamma.fixed_view_mut::<3, 3>(POS, 3).copy_from(&(r * dt2));
         let mut noise = SVector::<f64, 6>::zeros();
         noise.fixed_rows_mut::<3>(0).fill(self.var_g);
         noise.fixed_rows_mut::<3>(3).fill(self.var_a);
