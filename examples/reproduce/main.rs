@@ -58,6 +58,7 @@ use std::time::Instant;
 
 mod fusion_nav;
 mod stats;
+mod sweep;
 
 use fusion_nav::FusionNav;
 
@@ -118,6 +119,10 @@ struct Args {
     /// Seeds run in parallel [default: the machine's available parallelism].
     #[arg(long)]
     threads: Option<usize>,
+    /// Run a sweep instead of the tables: every estimator and the bound
+    /// against one parameter (a table and a plot per scenario).
+    #[arg(long, value_enum)]
+    sweep: Option<sweep::SweepName>,
 }
 
 /// One simulated run, shared by every estimator.
@@ -505,10 +510,29 @@ fn gps_nis<T: Scalar>(outcome: &GpsOutcome<T>) -> Option<f64> {
     Some(nis)
 }
 
-/// Whether the NEES is sampled at this IMU time: every 100 ms, half-way
-/// between two 10 Hz fixes.
-fn is_nees_instant(t_us: u64) -> bool {
-    t_us % NEES_STEP_US == NEES_STEP_US / 2
+/// The NEES instants: the first IMU sample at or after each `50 ms + k 100 ms`
+/// (half-way between two 10 Hz fixes), the same on every seed.
+struct NeesClock {
+    next_us: u64,
+}
+
+impl NeesClock {
+    fn new() -> Self {
+        Self {
+            next_us: NEES_STEP_US / 2,
+        }
+    }
+
+    /// Whether the sample at `t_us` is an instant (call once per IMU sample).
+    fn tick(&mut self, t_us: u64) -> bool {
+        if t_us < self.next_us {
+            return false;
+        }
+        while self.next_us <= t_us {
+            self.next_us += NEES_STEP_US;
+        }
+        true
+    }
 }
 
 /// Feeds a run to a navigator in float type `T`, timing only its own calls,
@@ -532,6 +556,7 @@ fn score<T: Scalar, N: Navigator<T>>(
     let mut trace = Trace::default();
     let mut nees_series = Vec::new();
     let (mut nis_sum, mut nis_count) = (0.0, 0usize);
+    let mut nees_clock = NeesClock::new();
     for event in &setup.events {
         // Conversion to `T` happens outside the timed call.
         let converted = match event {
@@ -564,13 +589,14 @@ fn score<T: Scalar, N: Navigator<T>>(
             continue;
         };
         imu_samples += 1;
+        let nees_instant = nees_clock.tick(truth.t_us);
         if truth.t_us < setup.skip_us && !setup.keep_trace {
             continue;
         }
         let Some(est) = nav.estimate() else {
             if truth.t_us >= setup.skip_us {
                 missing += 1;
-                if is_nees_instant(truth.t_us) {
+                if nees_instant {
                     nees_series.push(f64::NAN);
                 }
             }
@@ -592,7 +618,7 @@ fn score<T: Scalar, N: Navigator<T>>(
         if truth.t_us < setup.skip_us {
             continue;
         }
-        if is_nees_instant(truth.t_us) {
+        if nees_instant {
             nees_series.push(covariance(&nav).map_or(f64::NAN, |c| setup.nees(&c)));
         }
         let (tilt_rad, heading_rad) = tilt_heading_error_rad(&attitude, &truth.attitude);
@@ -1397,7 +1423,7 @@ fn run_seed(
     registry: &[Estimator],
     progress: &Mutex<Progress>,
 ) -> SeedResult {
-    let config = sim_config(scenario, seed, options.duration_s, options.delay_s);
+    let config = options.sim_config(scenario, seed);
     let simulation = Simulation::new(config.clone()).expect("valid simulation config");
     let trajectory = simulation.trajectory().clone();
     let events: Vec<SimEvent> = simulation.collect();
@@ -1521,7 +1547,7 @@ fn run_scenario(
             by_estimator[i].push(score);
         }
     }
-    let config = sim_config(scenario, seeds[0], options.duration_s, options.delay_s);
+    let config = options.sim_config(scenario, seeds[0]);
     let mut traces = Vec::new();
     let mut summaries = Vec::new();
     let mut consistencies = Vec::new();
@@ -1557,6 +1583,24 @@ struct RunOptions {
     calibrated: bool,
     /// Seeds run at once.
     threads: usize,
+    /// GPS rate, Hz, when not the default (sweeps).
+    gps_rate_hz: Option<f64>,
+    /// IMU rate, Hz, when not the default (sweeps).
+    imu_rate_hz: Option<f64>,
+}
+
+impl RunOptions {
+    /// The simulation of one scenario and seed with these options.
+    fn sim_config(&self, scenario: Scenario, seed: u64) -> SimConfig {
+        let mut config = sim_config(scenario, seed, self.duration_s, self.delay_s);
+        if let Some(r) = self.gps_rate_hz {
+            config.sensors.gps_rate_hz = r;
+        }
+        if let Some(r) = self.imu_rate_hz {
+            config.sensors.imu_rate_hz = r;
+        }
+        config
+    }
 }
 
 /// Progress on stderr: one line per estimator run.
@@ -1627,7 +1671,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         threads: args.threads.unwrap_or_else(|| {
             std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
         }),
+        gps_rate_hz: None,
+        imu_rate_hz: None,
     };
+    if let Some(name) = args.sweep {
+        return sweep::run(name, &scenarios, &seeds, options, &args.json, plots);
+    }
     let results: Vec<ScenarioResult> = scenarios
         .iter()
         .map(|&s| run_scenario(s, &seeds, &options, &progress))
