@@ -156,11 +156,11 @@ impl BoundConfig {
     }
 }
 
-/// The bound at one IMU sample: standard deviations (RMS bounds).
+/// Standard deviations (RMS bounds) of the scored figures: at one instant
+/// ([`BoundSample`]) or as the RMS over time of a run
+/// ([`TrajectoryBound::rms_after`], the square root of the mean variance).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoundSample {
-    /// Time, microseconds.
-    pub t_us: u64,
+pub struct BoundRms {
     /// Tilt, radians.
     pub tilt_rad: f64,
     /// Heading (down component of the rotation-vector error), radians.
@@ -177,24 +177,13 @@ pub struct BoundSample {
     pub gyro_bias_rad_s: Vector3<f64>,
 }
 
-/// RMS over time of a [`TrajectoryBound`]: the square root of the mean
-/// variance over the samples counted.
+/// The bound at one IMU sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoundRms {
-    /// Tilt, radians.
-    pub tilt_rad: f64,
-    /// Heading, radians.
-    pub heading_rad: f64,
-    /// Roll, pitch, yaw, radians.
-    pub euler_rad: Vector3<f64>,
-    /// 3-D velocity, m/s.
-    pub velocity_m_s: f64,
-    /// 3-D position, metres.
-    pub position_m: f64,
-    /// Accelerometer bias per axis, m/s^2.
-    pub accel_bias_m_s2: Vector3<f64>,
-    /// Gyro bias per axis, rad/s.
-    pub gyro_bias_rad_s: Vector3<f64>,
+pub struct BoundSample {
+    /// Time, microseconds.
+    pub t_us: u64,
+    /// The standard deviations at that time.
+    pub std: BoundRms,
 }
 
 /// The per-time bound of a run, one sample per IMU sample.
@@ -213,11 +202,11 @@ impl TrajectoryBound {
             return None;
         }
         let n = counted.len() as f64;
-        let rms = |f: &dyn Fn(&BoundSample) -> f64| {
-            (counted.iter().map(|s| f(s).powi(2)).sum::<f64>() / n).sqrt()
+        let rms = |f: &dyn Fn(&BoundRms) -> f64| {
+            (counted.iter().map(|s| f(&s.std).powi(2)).sum::<f64>() / n).sqrt()
         };
         let rms3 =
-            |f: &dyn Fn(&BoundSample) -> Vector3<f64>| Vector3::from_fn(|i, _| rms(&|s| f(s)[i]));
+            |f: &dyn Fn(&BoundRms) -> Vector3<f64>| Vector3::from_fn(|i, _| rms(&|s| f(s)[i]));
         Some(BoundRms {
             tilt_rad: rms(&|s| s.tilt_rad),
             heading_rad: rms(&|s| s.heading_rad),
@@ -403,13 +392,15 @@ fn sample(p: &Cov, step: &Step) -> BoundSample {
     let sum = |i: usize| diag(i).sum().max(0.0).sqrt();
     BoundSample {
         t_us: step.t_us,
-        tilt_rad: (att[(0, 0)] + att[(1, 1)]).max(0.0).sqrt(),
-        heading_rad: att[(2, 2)].max(0.0).sqrt(),
-        euler_rad: euler,
-        velocity_m_s: sum(VEL),
-        position_m: sum(POS),
-        accel_bias_m_s2: diag(BA).map(|v| v.max(0.0).sqrt()),
-        gyro_bias_rad_s: diag(BG).map(|v| v.max(0.0).sqrt()),
+        std: BoundRms {
+            tilt_rad: (att[(0, 0)] + att[(1, 1)]).max(0.0).sqrt(),
+            heading_rad: att[(2, 2)].max(0.0).sqrt(),
+            euler_rad: euler,
+            velocity_m_s: sum(VEL),
+            position_m: sum(POS),
+            accel_bias_m_s2: diag(BA).map(|v| v.max(0.0).sqrt()),
+            gyro_bias_rad_s: diag(BG).map(|v| v.max(0.0).sqrt()),
+        },
     }
 }
 
