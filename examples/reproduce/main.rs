@@ -9,7 +9,14 @@
 //! cargo run --release --features sim --example reproduce              # everything
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
+//! cargo run --release --features sim --example reproduce -- --seeds 20                  # Monte Carlo
+//! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! ```
+//!
+//! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
+//! true trajectory), `bound_heading_mag` (the same with a heading-only
+//! magnetometer, not a bound), the crate's estimators in `f64` and `f32`, and
+//! the peer `fusion_nav` (module `fusion_nav`).
 //!
 //! Every figure is the mean over the seeds of one run's RMSE, counted
 //! after `skip_s` seconds (the convergence time), with the 95 % t-interval
@@ -1616,6 +1623,8 @@ impl RunOptions {
         }
         if let Some(r) = self.imu_rate_hz {
             config.sensors.imu_rate_hz = r;
+            // The magnetometer cannot outrun the IMU (100 Hz by default).
+            config.sensors.mag_rate_hz = config.sensors.mag_rate_hz.min(r);
         }
         config
     }

@@ -39,7 +39,7 @@ pub enum SweepName {
     /// GPS rate: 1, 2, 5, 10, 20 Hz.
     #[value(name = "gps_rate")]
     GpsRate,
-    /// IMU rate: 50, 100, 200, 1000 Hz.
+    /// IMU rate: 50, 100, 200, 1000 Hz (the magnetometer at most at the IMU rate).
     #[value(name = "imu_rate")]
     ImuRate,
     /// True GPS delay: 0, 0.1, 0.2, 0.4, 0.6 s.
