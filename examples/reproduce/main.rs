@@ -353,47 +353,20 @@ fn linearized(s: &RunSetup, magnetometer: BoundMagnetometer) -> RunScore {
 
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
+    let row = |name, run| Estimator { name, run };
     vec![
-        Estimator {
-            name: "bound",
-            run: run_bound,
-        },
-        Estimator {
-            name: "bound_heading_mag",
-            run: run_bound_heading_mag,
-        },
-        Estimator {
-            name: "ekf16",
-            run: run_ekf16::<f64>,
-        },
-        Estimator {
-            name: "aekf17",
-            run: run_aekf17::<f64>,
-        },
-        Estimator {
-            name: "proposed",
-            run: run_proposed::<f64>,
-        },
-        Estimator {
-            name: "oracle",
-            run: run_oracle::<f64>,
-        },
-        Estimator {
-            name: "ekf16_f32",
-            run: run_ekf16::<f32>,
-        },
-        Estimator {
-            name: "aekf17_f32",
-            run: run_aekf17::<f32>,
-        },
-        Estimator {
-            name: "proposed_f32",
-            run: run_proposed::<f32>,
-        },
-        Estimator {
-            name: "fusion_nav",
-            run: |s| score::<f32, _>(FusionNav::new(&s.config), s, |_| None),
-        },
+        row("bound", run_bound),
+        row("bound_heading_mag", run_bound_heading_mag),
+        row("ekf16", run_ekf16::<f64>),
+        row("aekf17", run_aekf17::<f64>),
+        row("proposed", run_proposed::<f64>),
+        row("oracle", run_oracle::<f64>),
+        row("ekf16_f32", run_ekf16::<f32>),
+        row("aekf17_f32", run_aekf17::<f32>),
+        row("proposed_f32", run_proposed::<f32>),
+        row("fusion_nav", |s| {
+            score::<f32, _>(FusionNav::new(&s.config), s, |_| None)
+        }),
     ]
 }
 
