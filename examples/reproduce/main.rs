@@ -818,6 +818,8 @@ struct ScenarioResult {
     floor_hover: NoiseFloor,
     summaries: Vec<(&'static str, Summary)>,
     consistency: Vec<(&'static str, Consistency)>,
+    /// Every seed's metrics per estimator, in registry order (paired comparisons).
+    per_seed: Vec<(&'static str, Vec<Metrics>)>,
     /// First seed's traces per estimator, and the truth's pitch and delay.
     traces: Vec<(&'static str, Trace)>,
     truth_trace: Vec<(f64, f64, f64)>,
@@ -838,6 +840,48 @@ impl ScenarioResult {
                 / n)
                 .sqrt()
         })
+    }
+}
+
+/// The paired comparisons printed and written: `proposed` against each.
+const PAIRED_AGAINST: [&str; 3] = ["oracle", "aekf17", "ekf16"];
+
+/// Figures of the paired comparison.
+const PAIRED_FIGURES: [Figure; 7] = [
+    ("roll_deg", |m| Some(m.roll_deg)),
+    ("pitch_deg", |m| Some(m.pitch_deg)),
+    ("yaw_deg", |m| Some(m.yaw_deg)),
+    ("tilt_deg", |m| Some(m.tilt_deg)),
+    ("heading_deg", |m| Some(m.heading_deg)),
+    ("vel_m_s", |m| Some(m.vel_m_s)),
+    ("pos_m", |m| Some(m.pos_m)),
+];
+
+impl ScenarioResult {
+    /// Per figure, the mean over the seeds of `proposed - other` on the same
+    /// seed and its 95 % t-interval, `(mean, lo, hi)`; `None` when a row is
+    /// missing.
+    fn paired(&self, other: &str) -> Option<Vec<(&'static str, (f64, f64, f64))>> {
+        let runs = |name: &str| {
+            self.per_seed
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, m)| m)
+        };
+        let (p, o) = (runs("proposed")?, runs(other)?);
+        Some(
+            PAIRED_FIGURES
+                .iter()
+                .map(|(name, get)| {
+                    let d: Vec<f64> = p
+                        .iter()
+                        .zip(o)
+                        .map(|(a, b)| get(a).unwrap_or(f64::NAN) - get(b).unwrap_or(f64::NAN))
+                        .collect();
+                    (*name, stats::mean_ci95(&d))
+                })
+                .collect(),
+        )
     }
 }
 
@@ -1058,6 +1102,27 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         }
         let _ = writeln!(
             out,
+            "\nPaired differences (`{}`): `proposed` minus each row on the same seeds, mean \
+             ±95 % t-interval; negative: `proposed` lower\n",
+            r.scenario.name()
+        );
+        let _ = writeln!(
+            out,
+            "| proposed minus | {} |",
+            PAIRED_FIGURES.map(|(n, _)| n).join(" | ")
+        );
+        let _ = writeln!(out, "|---|{}", "---|".repeat(PAIRED_FIGURES.len()));
+        for other in PAIRED_AGAINST {
+            if let Some(diffs) = r.paired(other) {
+                let cells: Vec<String> = diffs
+                    .iter()
+                    .map(|(_, (m, lo, hi))| fmt_ci(*m, *lo, *hi))
+                    .collect();
+                let _ = writeln!(out, "| {other} | {} |", cells.join(" | "));
+            }
+        }
+        let _ = writeln!(
+            out,
             "\nConsistency (`{}`): NEES of [position, velocity] (6 dof, the filter's own covariance \
              at the instant its estimate describes), every 100 ms, averaged over the seeds; GPS NIS \
              (6 dof, diagonal of S) over every scored fix\n",
@@ -1159,8 +1224,24 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
                 estimators.insert((*name).into(), Value::Object(entry));
             }
             let f = &r.floor_hover;
+            let mut paired = serde_json::Map::new();
+            for other in PAIRED_AGAINST {
+                if let Some(diffs) = r.paired(other) {
+                    let entry: serde_json::Map<String, Value> = diffs
+                        .iter()
+                        .map(|(n, (m, lo, hi))| {
+                            (
+                                (*n).to_string(),
+                                json!({"mean": json_number(*m), "ci95": json_pair((*lo, *hi))}),
+                            )
+                        })
+                        .collect();
+                    paired.insert(format!("proposed_minus_{other}"), Value::Object(entry));
+                }
+            }
             json!({
                 "name": r.scenario.name(),
+                "paired": paired,
                 "accel_limit_m_s2": r.scenario.accel_limit_m_s2(),
                 "true_delay_s": r.true_delay_s,
                 "delay_bound_s": json_number(r.delay_bound_s),
@@ -1549,9 +1630,11 @@ fn run_scenario(
     let mut traces = Vec::new();
     let mut summaries = Vec::new();
     let mut consistencies = Vec::new();
+    let mut per_seed = Vec::new();
     for (estimator, scores) in registry.iter().zip(&mut by_estimator) {
         let metrics: Vec<Metrics> = scores.iter().map(|s| s.metrics.clone()).collect();
         summaries.push((estimator.name, summarize(&metrics)));
+        per_seed.push((estimator.name, metrics));
         consistencies.push((estimator.name, consistency(scores)));
         if options.keep_trace {
             traces.push((estimator.name, std::mem::take(&mut scores[0].trace)));
@@ -1564,6 +1647,7 @@ fn run_scenario(
         floor_hover: noise_floor(&config.sensors, STANDARD_GRAVITY),
         summaries,
         consistency: consistencies,
+        per_seed,
         traces,
         truth_trace,
         calibrated_delays_s,
