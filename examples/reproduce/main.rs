@@ -857,11 +857,14 @@ const PAIRED_FIGURES: [Figure; 7] = [
     ("pos_m", |m| Some(m.pos_m)),
 ];
 
+/// A mean over the seeds with its 95 % interval, `(mean, lo, hi)`.
+type MeanCi = (f64, f64, f64);
+
 impl ScenarioResult {
     /// Per figure, the mean over the seeds of `proposed - other` on the same
     /// seed and its 95 % t-interval, `(mean, lo, hi)`; `None` when a row is
     /// missing.
-    fn paired(&self, other: &str) -> Option<Vec<(&'static str, (f64, f64, f64))>> {
+    fn paired(&self, other: &str) -> Option<Vec<(&'static str, MeanCi)>> {
         let runs = |name: &str| {
             self.per_seed
                 .iter()
