@@ -846,16 +846,8 @@ impl ScenarioResult {
 /// The paired comparisons printed and written: `proposed` against each.
 const PAIRED_AGAINST: [&str; 3] = ["oracle", "aekf17", "ekf16"];
 
-/// Figures of the paired comparison.
-const PAIRED_FIGURES: [Figure; 7] = [
-    ("roll_deg", |m| Some(m.roll_deg)),
-    ("pitch_deg", |m| Some(m.pitch_deg)),
-    ("yaw_deg", |m| Some(m.yaw_deg)),
-    ("tilt_deg", |m| Some(m.tilt_deg)),
-    ("heading_deg", |m| Some(m.heading_deg)),
-    ("vel_m_s", |m| Some(m.vel_m_s)),
-    ("pos_m", |m| Some(m.pos_m)),
-];
+/// Figures of the paired comparison: the errors of [`FIGURES`] (roll to position).
+const PAIRED_FIGURES: &[Figure] = FIGURES.split_at(7).0;
 
 /// A mean over the seeds with its 95 % interval, `(mean, lo, hi)`.
 type MeanCi = (f64, f64, f64);
@@ -1112,7 +1104,11 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         let _ = writeln!(
             out,
             "| proposed minus | {} |",
-            PAIRED_FIGURES.map(|(n, _)| n).join(" | ")
+            PAIRED_FIGURES
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(" | ")
         );
         let _ = writeln!(out, "|---|{}", "---|".repeat(PAIRED_FIGURES.len()));
         for other in PAIRED_AGAINST {
