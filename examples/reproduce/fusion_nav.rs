@@ -46,7 +46,7 @@ impl FusionNav {
         let accel_var = s.accel_noise_std_m_s2().powi(2);
         config.imu.accel_white = (accel_var / s.imu_rate_hz).sqrt() as f32;
         config.gravity = delaynav::sim::STANDARD_GRAVITY as f32;
-        let mut filter = fnav::Eskf::new(config).unwrap_or_default();
+        let mut filter = fnav::Eskf::new(config).expect("valid fusion-nav config");
         let _ =
             filter.set_magnetic_declination(fnav::Radians::from_radians(s.declination_rad as f32));
         Self {
