@@ -210,8 +210,22 @@ pub fn checked_mag<T: Scalar, M: MagSample<T> + ?Sized>(mag: &M) -> Result<Mag<T
     Ok(s)
 }
 
+/// Largest reported position accuracy (1 sigma) a fix may carry, metres.
+/// A receiver reporting more has no usable fix (u-blox reports kilometres
+/// before its first fix); beyond it the fix is refused. The bound also keeps
+/// the accuracy's square, the measurement variance, far from overflow in
+/// `f32` (`1e4^2 = 1e8`, against `f32::MAX ~ 3.4e38`).
+pub const MAX_POSITION_ACCURACY_M: f64 = 1.0e4;
+
+/// Largest reported speed accuracy (1 sigma) a fix may carry, m/s (see
+/// [`MAX_POSITION_ACCURACY_M`]).
+pub const MAX_SPEED_ACCURACY_M_S: f64 = 1.0e3;
+
 /// Copy any [`GpsFix`] into a [`Gps`], refusing non-finite values and
-/// non-positive accuracies.
+/// reported accuracies that are not finite, not positive, or above
+/// [`MAX_POSITION_ACCURACY_M`] / [`MAX_SPEED_ACCURACY_M_S`]: every accuracy
+/// is checked here, before it can touch a covariance (the estimators count
+/// the refusal as an invalid fix).
 pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, Error> {
     let s = Gps {
         t_us: gps.time_us(),
@@ -239,10 +253,22 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
             field: "gps.velocity",
         });
     }
-    for (acc, field) in [
-        (s.horizontal_accuracy_m, "gps.horizontal_accuracy"),
-        (s.vertical_accuracy_m, "gps.vertical_accuracy"),
-        (s.speed_accuracy_m_s, "gps.speed_accuracy"),
+    for (acc, field, max) in [
+        (
+            s.horizontal_accuracy_m,
+            "gps.horizontal_accuracy",
+            MAX_POSITION_ACCURACY_M,
+        ),
+        (
+            s.vertical_accuracy_m,
+            "gps.vertical_accuracy",
+            MAX_POSITION_ACCURACY_M,
+        ),
+        (
+            s.speed_accuracy_m_s,
+            "gps.speed_accuracy",
+            MAX_SPEED_ACCURACY_M_S,
+        ),
     ] {
         if let Some(a) = acc {
             if !a.is_finite() {
@@ -252,6 +278,12 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
                 return Err(Error::OutOfRange {
                     field,
                     reason: "accuracy must be positive",
+                });
+            }
+            if a > T::lit(max) {
+                return Err(Error::OutOfRange {
+                    field,
+                    reason: "accuracy above the plausible bound (sensors::MAX_*_ACCURACY)",
                 });
             }
         }

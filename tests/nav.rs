@@ -7,7 +7,10 @@ mod common;
 
 use common::Motion;
 use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, State, Suite, feed, fly};
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, WhiteningFilter};
+use delaynav::nav::{
+    AlignmentState, DelayCompensatedNav, DelayMode, NavConfig, ResetCause, ResetRecord,
+    WhiteningFilter,
+};
 use delaynav::{
     Ekf16Config, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator,
     Scalar,
@@ -348,10 +351,28 @@ macro_rules! nav_tests {
                     gyro_rad_s: Vector3::zeros(),
                     accel_m_s2: Vector3::new(T::lit(0.0), T::lit(0.0), T::lit(-9.8)),
                 };
+                // 2 s ahead is beyond max_time_jump_us (1 s): refused once,
+                // the next sample confirms the jump, which is then a gap.
+                assert!(matches!(
+                    nav.push_imu(&level),
+                    Err(Error::OutOfRange {
+                        field: "imu.time",
+                        ..
+                    })
+                ));
+                assert_eq!(nav.refusals().imu_ahead, 1);
+                let level = Imu {
+                    t_us: level.t_us + 1000,
+                    ..level
+                };
                 assert!(matches!(
                     nav.push_imu(&level),
                     Err(Error::StepTooLong { .. })
                 ));
+                assert_eq!(
+                    nav.health().last_reset.map(|r| r.cause),
+                    Some(ResetCause::ImuGap)
+                );
                 for k in 1..2000u64 {
                     nav.push_imu(&Imu {
                         t_us: level.t_us + k * 1000,
@@ -363,6 +384,111 @@ macro_rules! nav_tests {
                 assert_eq!(e.t_us, level.t_us + 1_999_000);
                 assert!(e.position_ned_m.iter().all(|x| x.is_finite()));
                 assert_eq!(nav.refusals().imu_gap, 1);
+            }
+
+            #[test]
+            fn a_future_stamp_is_refused_and_the_stream_goes_on() {
+                let mut nav = running();
+                let t = nav.estimate().unwrap().t_us;
+                let level = |t_us| Imu {
+                    t_us,
+                    gyro_rad_s: Vector3::zeros(),
+                    accel_m_s2: Vector3::new(T::lit(0.0), T::lit(0.0), T::lit(-9.8)),
+                };
+                assert!(nav.push_imu(&level(t + 3_600_000_000)).is_err());
+                for k in 1..=100u64 {
+                    nav.push_imu(&level(t + k * 1000)).unwrap();
+                }
+                assert_eq!(nav.estimate().unwrap().t_us, t + 100_000);
+                // GPS and magnetometer stamped an hour ahead of the IMU: refused.
+                let fix = Gps {
+                    t_us: t + 3_600_000_000,
+                    position: GpsPosition::Ned(Vector3::zeros()),
+                    velocity_ned_m_s: Vector3::zeros(),
+                    horizontal_accuracy_m: None,
+                    vertical_accuracy_m: None,
+                    speed_accuracy_m_s: None,
+                };
+                assert!(nav.push_gps(&fix).is_err());
+                let mag = Mag {
+                    t_us: t + 3_600_000_000,
+                    field_body: Vector3::new(T::lit(1.0), T::lit(0.0), T::lit(0.0)),
+                };
+                assert!(nav.push_mag(&mag).is_err());
+                let h = nav.health();
+                assert_eq!(
+                    (
+                        h.refusals.imu_ahead,
+                        h.refusals.gps_ahead,
+                        h.refusals.mag_ahead
+                    ),
+                    (1, 1, 1)
+                );
+                // A fix with an absurd accuracy is refused and counted as such.
+                let bad = Gps {
+                    t_us: t + 100_000,
+                    horizontal_accuracy_m: Some(T::lit(1e12)),
+                    ..fix
+                };
+                assert!(nav.push_gps(&bad).is_err());
+                assert_eq!(nav.health().refusals.gps_accuracy, 1);
+                // After NED fixes, a geodetic one is a typed error, not a new origin.
+                let geodetic = Gps {
+                    t_us: t + 100_000,
+                    position: GpsPosition::Geodetic(delaynav::Geodetic {
+                        lat_deg: 31.0,
+                        lon_deg: 121.0,
+                        alt_m: 10.0,
+                    }),
+                    ..fix
+                };
+                assert!(matches!(
+                    nav.push_gps(&geodetic),
+                    Err(Error::OutOfRange {
+                        field: "gps.position",
+                        ..
+                    })
+                ));
+                assert_eq!(nav.health().refusals.gps_mixed_frames, 1);
+            }
+
+            #[test]
+            fn reset_restarts_and_is_reported() {
+                let mut nav = running();
+                let h = nav.health();
+                assert_eq!(h.alignment, AlignmentState::Aligned);
+                assert!(h.tilt_valid && h.position_valid && h.velocity_valid);
+                assert_eq!(h.last_reset, None);
+                let t = nav.estimate().unwrap().t_us;
+                // The clock goes back 1 s: refused, the caller resets.
+                let back = Imu {
+                    t_us: t - 1_000_000,
+                    gyro_rad_s: Vector3::zeros(),
+                    accel_m_s2: Vector3::new(T::lit(0.0), T::lit(0.0), T::lit(-9.8)),
+                };
+                assert!(matches!(
+                    nav.push_imu(&back),
+                    Err(Error::TimeWentBackwards { .. })
+                ));
+                nav.reset();
+                assert_eq!(nav.estimate(), None);
+                let h = nav.health();
+                assert_eq!(h.alignment, AlignmentState::WaitingForImu);
+                assert!(!h.tilt_valid && !h.position_valid);
+                assert_eq!(
+                    h.last_reset,
+                    Some(ResetRecord {
+                        t_us: Some(t),
+                        cause: ResetCause::Requested
+                    })
+                );
+                assert_eq!(h.refusals.imu_time, 1, "counters survive the reset");
+                // Any clock is accepted after the reset: flown again from 0, it aligns again.
+                for event in fly(&lively(3), &Suite::simulator(), 8.0, |_| 0.1, None) {
+                    feed(&mut nav, &event);
+                }
+                assert!(nav.estimate().is_some());
+                assert_eq!(nav.health().alignment, AlignmentState::Aligned);
             }
 
             #[test]

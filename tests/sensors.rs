@@ -121,6 +121,28 @@ macro_rules! sensor_tests {
                         ..
                     })
                 ));
+                // Every accuracy is bounded: 1e12 m is refused (its square
+                // would overflow f32), so is a negative one; the bound itself passes.
+                for (field, set) in [
+                    (
+                        "gps.horizontal_accuracy",
+                        (|g: &mut Gps<T>, a| g.horizontal_accuracy_m = Some(a)) as fn(&mut Gps<T>, T),
+                    ),
+                    ("gps.vertical_accuracy", |g, a| g.vertical_accuracy_m = Some(a)),
+                    ("gps.speed_accuracy", |g, a| g.speed_accuracy_m_s = Some(a)),
+                ] {
+                    for bad in [1e12, -1.0, 1.1e4] {
+                        let mut g = gps();
+                        set(&mut g, bad as T);
+                        assert!(
+                            matches!(checked_gps(&g), Err(Error::OutOfRange { field: f, .. }) if f == field),
+                            "{field} {bad}"
+                        );
+                    }
+                    let mut g = gps();
+                    set(&mut g, 999.0);
+                    assert!(checked_gps(&g).is_ok(), "{field}");
+                }
                 let mut g = gps();
                 g.position = GpsPosition::Geodetic(Geodetic {
                     lat_deg: 91.0,

@@ -11,6 +11,7 @@
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
 //! cargo run --release --features sim --example reproduce -- --seeds 20                  # Monte Carlo
 //! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
+//! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! ```
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
@@ -40,6 +41,8 @@
 //!
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
+
+mod faults;
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
@@ -130,6 +133,9 @@ struct Args {
     /// against one parameter (a table and a plot per scenario).
     #[arg(long, value_enum)]
     sweep: Option<sweep::SweepName>,
+    /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
+    #[arg(long)]
+    faults: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -1707,6 +1713,17 @@ impl Progress {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    if args.faults {
+        let scale = args.duration.unwrap_or(60.0) / 60.0;
+        let results = faults::run(args.seed, scale);
+        if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let json = faults::to_json(&results, args.seed, scale);
+        std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
+        eprintln!("wrote {}", args.json.display());
+        return Ok(());
+    }
     let seeds_n = args.seeds.unwrap_or(if args.quick { 2 } else { 5 });
     let duration_s = args
         .duration

@@ -43,7 +43,14 @@
 //! differences. Logging jitter (about +-2 ms at 50 Hz on the real log) is then
 //! a zero-mean timing noise on individual samples, which the estimate averages
 //! out; interpolating on the jittered timestamps instead would build the
-//! timestamp noise into every read.
+//! timestamp noise into every read. That holds for logged timestamps that
+//! jitter around a uniform sampling; when the samples themselves are
+//! irregular (dropped samples, a rate change, sampling jitter with correct
+//! stamps) the mean period moves every later read, and the reader should
+//! map its time to a fractional index itself and call
+//! [`FractionalDelayLine::read`], as the delay-compensated navigator does
+//! (`src/nav/timeline.rs`: 10 % dropped samples cost 18x tilt RMSE with
+//! the mean period).
 
 use core::cell::Cell;
 

@@ -88,6 +88,11 @@ pub struct NavConfig<T: Scalar> {
     /// delay shrinks, the horizon catches up at most this much faster than
     /// real time instead of jumping.
     pub max_horizon_step_ratio: T,
+    /// Largest step forward of a timestamp, µs: an IMU sample further ahead
+    /// of the previous one is refused until the next sample confirms the
+    /// jump; a GPS or magnetometer sample further ahead of the newest IMU
+    /// sample is refused (`src/nav/timeline.rs`). Default 1 s.
+    pub max_time_jump_us: u64,
 }
 
 impl<T: Scalar> Default for NavConfig<T> {
@@ -106,6 +111,7 @@ impl<T: Scalar> Default for NavConfig<T> {
             accel_whitening: WhiteningFilter::PassThrough,
             gyro_whitening: WhiteningFilter::PassThrough,
             max_horizon_step_ratio: T::lit(2.0),
+            max_time_jump_us: 1_000_000,
         }
     }
 }
@@ -155,6 +161,9 @@ impl<T: Scalar> NavConfig<T> {
         }
         if !(self.max_horizon_step_ratio.is_finite() && self.max_horizon_step_ratio >= T::one()) {
             return bad("max_horizon_step_ratio", "must be finite and >= 1");
+        }
+        if self.max_time_jump_us == 0 {
+            return bad("max_time_jump_us", "must be positive");
         }
         Ok(())
     }

@@ -124,6 +124,18 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         }
     }
 
+    /// Back to the state of [`new`](Self::new) without building a new ring.
+    pub(crate) fn reset(&mut self) {
+        self.ring.clear();
+        self.pushed = 0;
+        self.cursor = 0;
+        self.rotation = UnitQuaternion::identity();
+        self.velocity = Vector3::zeros();
+        self.position = Vector3::zeros();
+        self.started = false;
+        self.ready = false;
+    }
+
     /// True once started from a horizon state.
     pub(crate) fn is_started(&self) -> bool {
         self.started
@@ -159,17 +171,11 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         gyro: &Vector3<T>,
         accel: &Vector3<T>,
     ) {
+        self.reset();
         self.x = *x_h;
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
-        self.ring.clear();
-        self.pushed = 0;
-        self.cursor = 0;
-        self.rotation = UnitQuaternion::identity();
-        self.velocity = Vector3::zeros();
-        self.position = Vector3::zeros();
         self.started = true;
-        self.ready = false;
         self.store();
     }
 

@@ -67,9 +67,22 @@
 //!
 //! # Initialization
 //! The horizon EKF initializes as [`Ekf16`] does, from delayed IMU samples
-//! and then a GPS fix. The output state starts from the horizon state at that
-//! moment; the present estimate is `None` until the horizon has reached the
-//! first stored output state (one delay later) and corrected it.
+//! and then a GPS fix, with two waits for what it sets: while a
+//! magnetometer stream exists but none of its samples has reached the
+//! horizon, fixes are answered [`GpsOutcome::Waiting`]; when the aligning
+//! fix moves faster than [`MOVING_SPEED_M_S`], the tilt standard deviation
+//! is raised to [`MOVING_TILT_STD_RAD`] (the accelerometer is not the
+//! vertical in a turn) and GPS velocity resolves it. The output state
+//! starts from the horizon state at that moment; the present estimate is
+//! `None` until the horizon has reached the first stored output state (one
+//! delay later) and corrected it. [`DelayCompensatedNav::alignment`] and
+//! [`DelayCompensatedNav::health`] report where it stands.
+//!
+//! # Timestamps
+//! The history is read by time, not with a mean period (`timeline.rs`):
+//! rate changes, dropped samples and jitter read the right sample. Clock
+//! faults are refused and counted without blocking a stream; a clock that
+//! went back needs [`DelayCompensatedNav::reset`].
 //!
 //! # Fixed mode
 //! [`DelayMode::Fixed`] is the same type with the loop off and `tau` given:
@@ -88,25 +101,32 @@
 
 pub mod config;
 mod forward;
+pub mod health;
+mod timeline;
 
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
+pub use health::{AlignmentState, DelayStatus, Health, ResetCause, ResetRecord};
 
 use crate::delay::ring::Ring;
 use crate::delay::{
-    DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SamplePeriod,
-    SensorDelays, WhiteningFir,
+    DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
+    WhiteningFir,
 };
-use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, POS, VEL, quaternion_of};
+use crate::ekf16::state::{
+    ACCEL_BIAS, GYRO_BIAS, POS, QUAT, VEL, attitude_covariance, quaternion_of,
+};
 use crate::ekf16::{Ekf16, RefusalCounters};
 use crate::error::Error;
 use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
-use crate::scalar::{Scalar, us_to_s};
+use crate::scalar::Scalar;
 use crate::sensors::{
-    GpsFix, Imu, ImuSample, Mag, MagSample, check_time, checked_gps, checked_imu, checked_mag,
+    GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
 use forward::ForwardReckoner;
+use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
+use timeline::{ClockRefusal, SampleTimes, StreamClock};
 
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
@@ -116,6 +136,16 @@ pub const MAG_QUEUE: usize = 128;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
+
+/// GPS speed above which an alignment counts as made in motion, m/s. The
+/// accelerometer cannot tell: its mean departs from gravity by the
+/// kinematic acceleration (6 % in a 20 deg turn) but also by its bias (up
+/// to 10 % with Table 3's 0.1 g), so the fix's velocity decides.
+pub const MOVING_SPEED_M_S: f64 = 2.0;
+
+/// Tilt standard deviation of an alignment made while accelerating, rad
+/// (20 deg: the bank of a brisk turn).
+pub const MOVING_TILT_STD_RAD: f64 = 0.35;
 
 /// Relative margin on the IMU rate when checking the history size.
 const RATE_MARGIN: f64 = 1.02;
@@ -131,16 +161,29 @@ pub struct NavRefusals {
     pub imu_out_of_range: u32,
     /// IMU samples duplicated or going back in time.
     pub imu_time: u32,
+    /// IMU samples stamped more than `max_time_jump_us` ahead and not
+    /// confirmed by the next sample.
+    pub imu_ahead: u32,
     /// IMU gaps longer than the EKF's `max_imu_step_us` (history restarted).
     pub imu_gap: u32,
     /// GPS fixes with a non-finite or implausible value.
     pub gps_invalid: u32,
     /// GPS fixes duplicated or going back in time.
     pub gps_time: u32,
+    /// GPS fixes whose reported accuracy is not finite, not positive or
+    /// above its bound (also counted in `gps_invalid`).
+    pub gps_accuracy: u32,
+    /// GPS fixes stamped more than `max_time_jump_us` after the newest IMU sample.
+    pub gps_ahead: u32,
+    /// GPS fixes whose position kind (geodetic or NED) differs from the first
+    /// accepted fix's.
+    pub gps_mixed_frames: u32,
     /// Magnetometer samples with a non-finite or zero field.
     pub mag_invalid: u32,
     /// Magnetometer samples duplicated or going back in time.
     pub mag_time: u32,
+    /// Magnetometer samples stamped more than `max_time_jump_us` after the newest IMU sample.
+    pub mag_ahead: u32,
     /// Magnetometer samples dropped from a full queue.
     pub mag_dropped: u32,
     /// Horizon steps the EKF refused (e.g. a step longer than its maximum).
@@ -169,6 +212,23 @@ pub struct NavWork {
 
 fn bump(counter: &mut u32) {
     *counter = counter.saturating_add(1);
+}
+
+/// A clock check's outcome with its refusal counted: `ahead` for a
+/// timestamp too far ahead, `time` for a duplicate or one going back.
+fn counted(
+    check: Result<(), (ClockRefusal, Error)>,
+    ahead: &mut u32,
+    time: &mut u32,
+) -> Result<(), Error> {
+    check.map_err(|(why, e)| {
+        bump(if why == ClockRefusal::Ahead {
+            ahead
+        } else {
+            time
+        });
+        e
+    })
 }
 
 /// Either a whitening FIR or nothing.
@@ -250,12 +310,23 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     gyro_whitening: Whitening<T>,
     /// Whitened accelerometer (0..3) and gyroscope (3..6).
     history: FractionalDelayLine<T, 6, HIST, HISTORY_ORDER>,
-    period: SamplePeriod,
+    /// Timestamp of every history sample.
+    times: SampleTimes<HIST>,
     forward: ForwardReckoner<T, HIST>,
     mags: Ring<Mag<T>, MAG_QUEUE>,
     last_imu: Option<Imu<T>>,
-    last_gps_us: Option<u64>,
-    last_mag_us: Option<u64>,
+    imu_clock: StreamClock,
+    gps_clock: StreamClock,
+    mag_clock: StreamClock,
+    last_reset: Option<ResetRecord>,
+    valid_delay_updates: u32,
+    /// IMU biases and their variances (accelerometer, gyroscope) kept
+    /// through a reset: sensor properties, not lost with the clock.
+    retained_biases: Option<(SVector<T, 6>, SVector<T, 6>)>,
+    /// A magnetometer sample has reached the horizon EKF since the start.
+    mag_at_horizon: bool,
+    /// Whether the accepted fixes are geodetic (`Some(true)`) or NED.
+    geodetic_fixes: Option<bool>,
     last_update: Option<DelayUpdate<T>>,
     present_accel: Vector3<T>,
     refusals: NavRefusals,
@@ -291,15 +362,21 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             accel_whitening,
             gyro_whitening,
             history: FractionalDelayLine::new(),
-            period: SamplePeriod::new(),
+            times: SampleTimes::new(),
             forward: ForwardReckoner::new(),
             mags: Ring::new(Mag {
                 t_us: 0,
                 field_body: Vector3::zeros(),
             }),
             last_imu: None,
-            last_gps_us: None,
-            last_mag_us: None,
+            imu_clock: StreamClock::default(),
+            gps_clock: StreamClock::default(),
+            mag_clock: StreamClock::default(),
+            last_reset: None,
+            valid_delay_updates: 0,
+            retained_biases: None,
+            mag_at_horizon: false,
+            geodetic_fixes: None,
             last_update: None,
             present_accel: Vector3::zeros(),
             refusals: NavRefusals::default(),
@@ -401,6 +478,117 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.mags.len()
     }
 
+    /// Restarts the navigator as if new, keeping its configuration and its
+    /// refusal counters (recorded as [`ResetCause::Requested`] in
+    /// [`health`](Self::health)). Call it when a push returns
+    /// [`Error::TimeWentBackwards`] for a clock that really went back (a
+    /// rebooted sensor hub): every later sample would be refused otherwise.
+    /// No allocation; the horizon EKF and the delay loop are rebuilt from
+    /// the configuration, which [`new`](Self::new) validated.
+    pub fn reset(&mut self) {
+        if let Some(x) = self.ekf.nav_state() {
+            let p = self.ekf.covariance();
+            let mut biases = SVector::<T, 6>::zeros();
+            let mut variances = SVector::<T, 6>::zeros();
+            for i in 0..3 {
+                biases[i] = x.accel_bias_m_s2[i];
+                biases[3 + i] = x.gyro_bias_rad_s[i];
+                variances[i] = p[(ACCEL_BIAS + i, ACCEL_BIAS + i)];
+                variances[3 + i] = p[(GYRO_BIAS + i, GYRO_BIAS + i)];
+            }
+            self.retained_biases = Some((biases, variances));
+        }
+        if let Ok(ekf) = Ekf16::new(self.config.ekf) {
+            self.ekf = ekf;
+        }
+        if let Ok(delay_loop) = DefaultDelayLoop::new(self.config.loop_config()) {
+            self.delay_loop = delay_loop;
+        }
+        self.accel_whitening.reset();
+        self.gyro_whitening.reset();
+        self.history.clear();
+        self.times.clear();
+        self.forward.reset();
+        self.mags.clear();
+        self.last_reset = Some(ResetRecord {
+            t_us: self.imu_clock.last(),
+            cause: ResetCause::Requested,
+        });
+        self.last_imu = None;
+        self.imu_clock = StreamClock::default();
+        self.gps_clock = StreamClock::default();
+        self.mag_clock = StreamClock::default();
+        self.last_update = None;
+        self.valid_delay_updates = 0;
+        self.mag_at_horizon = false;
+        self.geodetic_fixes = None;
+        self.present_accel = Vector3::zeros();
+    }
+
+    /// Where the navigator is in its start-up.
+    pub fn alignment(&self) -> AlignmentState {
+        if self.forward.is_ready() {
+            AlignmentState::Aligned
+        } else if self.ekf.is_initialized() {
+            AlignmentState::CarryingForward
+        } else if self.ekf.time_us().is_some() {
+            AlignmentState::WaitingForGps
+        } else {
+            AlignmentState::WaitingForImu
+        }
+    }
+
+    /// What the navigator can vouch for now (see [`health`]).
+    pub fn health(&self) -> Health<T> {
+        let alignment = self.alignment();
+        let aligned = alignment == AlignmentState::Aligned;
+        let horizon = self.ekf.time_us().unwrap_or(0);
+        let recent =
+            |t: Option<u64>, stale: u64| t.is_some_and(|t| horizon <= t.saturating_add(stale));
+        let p = self.ekf.covariance();
+        let std = |i: usize| p[(i, i)].max(T::zero()).sqrt();
+        let horizontal_std = (p[(POS, POS)] + p[(POS + 1, POS + 1)])
+            .max(T::zero())
+            .sqrt();
+        let velocity_std = std(VEL).max(std(VEL + 1)).max(std(VEL + 2));
+        let gps_fused = self
+            .ekf
+            .last_gps_fusion()
+            .filter(|(pos, vel)| pos.fused || vel.fused)
+            .map(|(pos, _)| pos.t_us);
+        let mag_fused = self
+            .ekf
+            .last_mag_fusion()
+            .filter(|m| m.fused)
+            .map(|m| m.t_us);
+        let gps_recent = recent(gps_fused, GPS_STALE_US);
+        let estimated = self.is_estimating();
+        Health {
+            t_us: self.imu_clock.last(),
+            alignment,
+            tilt_valid: aligned,
+            heading_valid: aligned && recent(mag_fused, HEADING_STALE_US),
+            velocity_valid: aligned && gps_recent && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
+            position_valid: aligned && gps_recent && horizontal_std <= T::lit(MAX_POSITION_STD_M),
+            delay_valid: !estimated || self.valid_delay_updates > 0,
+            last_reset: self.last_reset,
+            refusals: self.refusals,
+            ekf_refusals: self.ekf.refusals(),
+            delay: DelayStatus {
+                estimated,
+                delay_s: self.delay_s(),
+                delay_std_s: self.delay_std_s(),
+                last_valid_axes: self.last_update.map(|u| u.axes.map(|a| a.valid)),
+                valid_updates: self.valid_delay_updates,
+            },
+        }
+    }
+
+    /// The present estimate with its [`Health`] (`None` until aligned).
+    pub fn estimate_with_health(&self) -> Option<(Estimate<T>, Health<T>)> {
+        Some((self.estimate()?, self.health()))
+    }
+
     fn with_delay(&self, mut e: Estimate<T>) -> Estimate<T> {
         e.delay_s = Some(self.delay_s());
         e.delay_std_s = Some(self.delay_std_s());
@@ -418,12 +606,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// The horizon time for the present `t_us`, or `None` when the horizon
     /// does not move (or cannot be read yet).
-    fn horizon_target(&self, t_us: u64, dt_us: u64, period_s: T) -> Option<u64> {
+    fn horizon_target(&self, t_us: u64, dt_us: u64) -> Option<u64> {
         let target = t_us.checked_sub(self.delay_us())?;
-        let readable_us = self
-            .history
-            .max_delay_samples()
-            .map(|n| (T::lit(n.saturating_sub(1) as f64) * period_s * T::lit(1e6)).as_f64())?;
+        self.history.max_delay_samples()?;
+        let oldest = self.times.oldest()?;
         let Some(horizon) = self.ekf.time_us() else {
             return Some(target);
         };
@@ -436,7 +622,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let capped = target.min(horizon.saturating_add(max_step));
         // After a gap the history restarted: the capped horizon is no longer
         // readable, jump to the target (the EKF grows P over the gap).
-        if ((t_us - capped) as f64) > readable_us {
+        if capped < oldest {
             Some(target)
         } else {
             Some(capped)
@@ -444,11 +630,15 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     }
 
     /// Steps the horizon EKF to `t_h` with the history read at eq. (15)'s delays.
-    fn step_horizon(&mut self, t_us: u64, t_h: u64, period_s: T) {
-        let back_s: T = us_to_s(t_us - t_h);
+    fn step_horizon(&mut self, t_us: u64, t_h: u64) {
         let (d_f, d_w) = self.group_delays_s();
-        let read = |delay_s: T| self.history.read_seconds(delay_s.max(T::zero()), period_s);
-        let (Ok(a), Ok(w)) = (read(back_s - d_f), read(back_s - d_w)) else {
+        let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
+        // The whitened streams at t_h + D (the raw sensors' t_h), by time.
+        let read = |at_us: u64| {
+            let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
+            self.history.read(d).ok()
+        };
+        let (Some(a), Some(w)) = (read(t_h + us(d_f)), read(t_h + us(d_w))) else {
             return;
         };
         let sample = Imu {
@@ -467,19 +657,65 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// sample's horizon target (a fix arriving between IMU samples): the fix
     /// is then fused at its own instant, not up to one IMU step early.
     fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
-        let (Some(last), Some(horizon), Some(period_s)) = (
-            self.last_imu,
-            self.ekf.time_us(),
-            self.period.period_s::<T>(),
-        ) else {
+        let (Some(last), Some(horizon)) = (self.last_imu, self.ekf.time_us()) else {
             return;
         };
         let Some(target) = t_fix_us.checked_sub(self.delay_us()) else {
             return;
         };
         if target > horizon && target <= last.t_us {
-            self.step_horizon(last.t_us, target, period_s);
+            self.step_horizon(last.t_us, target);
             self.drain_mags();
+        }
+    }
+
+    /// Right after the horizon EKF initialized itself from a fix: when the
+    /// vehicle was moving faster than [`MOVING_SPEED_M_S`] (an in-flight
+    /// start, a reset in flight) the accelerometer is probably not the vertical, so the tilt variance is raised to
+    /// [`MOVING_TILT_STD_RAD`] for the GPS velocity to resolve it; after a
+    /// [`reset`](Self::reset) the IMU biases and their variances are carried
+    /// over. The EKF is rebuilt from its own state (same time and origin).
+    fn refine_alignment(&mut self, speed_m_s: T) {
+        let moving = speed_m_s > T::lit(MOVING_SPEED_M_S);
+        let retained = self.retained_biases.take();
+        if !moving && retained.is_none() {
+            return;
+        }
+        let (Some(mut x), Some(t_us)) = (self.ekf.nav_state(), self.ekf.time_us()) else {
+            return;
+        };
+        let mut p = *self.ekf.covariance();
+        if moving {
+            let c = &self.config.ekf;
+            let tilt = T::lit(MOVING_TILT_STD_RAD).max(c.initial_tilt_std_rad);
+            let yaw = if self.mag_at_horizon {
+                c.initial_yaw_std_rad
+            } else {
+                c.initial_yaw_std_no_mag_rad
+            };
+            p.fixed_view_mut::<4, 4>(QUAT, QUAT)
+                .copy_from(&attitude_covariance(&x.attitude, tilt, tilt, yaw));
+        }
+        if let Some((biases, variances)) = retained {
+            x.accel_bias_m_s2 = biases.fixed_rows::<3>(0).into_owned();
+            x.gyro_bias_rad_s = biases.fixed_rows::<3>(3).into_owned();
+            for i in 0..3 {
+                for j in 0..16 {
+                    for k in [ACCEL_BIAS + i, GYRO_BIAS + i] {
+                        p[(k, j)] = T::zero();
+                        p[(j, k)] = T::zero();
+                    }
+                }
+                p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = variances[i];
+                p[(GYRO_BIAS + i, GYRO_BIAS + i)] = variances[3 + i];
+            }
+        }
+        let mut config = self.config.ekf;
+        if let Some(frame) = self.ekf.frame() {
+            config.origin = Some(frame.origin());
+        }
+        if let Ok(ekf) = Ekf16::from_state_with_covariance(config, t_us, &x, &p) {
+            self.ekf = ekf;
         }
     }
 
@@ -493,6 +729,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 break;
             }
             self.mags.pop_oldest();
+            self.mag_at_horizon = true;
             // Refusals (gate, time) are counted by the EKF.
             let _ = self.ekf.push_mag(&m);
         }
@@ -527,8 +764,13 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 reason: "above the configured max_gyro_rad_s or max_accel_m_s2",
             });
         }
-        check_time("imu", self.last_imu.map(|p| p.t_us), s.t_us)
-            .inspect_err(|_| bump(&mut self.refusals.imu_time))?;
+        let max_jump = self.config.max_time_jump_us;
+        counted(
+            self.imu_clock
+                .check("imu", "imu.time", s.t_us, None, max_jump),
+            &mut self.refusals.imu_ahead,
+            &mut self.refusals.imu_time,
+        )?;
         Ok(s)
     }
 }
@@ -545,8 +787,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let gap = dt_us > max_step;
         if gap {
             bump(&mut self.refusals.imu_gap);
+            self.last_reset = Some(ResetRecord {
+                t_us: Some(s.t_us),
+                cause: ResetCause::ImuGap,
+            });
             self.history.clear();
-            self.period.reset();
+            self.times.clear();
             self.accel_whitening.reset();
             self.gyro_whitening.reset();
         }
@@ -557,7 +803,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         channels.fixed_rows_mut::<3>(3).copy_from(&gyro);
         // Finite by the checks above: the line cannot refuse it.
         let _ = self.history.push(channels);
-        let _ = self.period.push(s.t_us);
+        self.times.push(s.t_us);
         self.imu_samples += 1;
 
         if self.forward.is_started() {
@@ -570,10 +816,8 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         self.last_imu = Some(s);
 
-        if let Some(period_s) = self.period.period_s::<T>()
-            && let Some(t_h) = self.horizon_target(s.t_us, dt_us, period_s)
-        {
-            self.step_horizon(s.t_us, t_h, period_s);
+        if let Some(t_h) = self.horizon_target(s.t_us, dt_us) {
+            self.step_horizon(s.t_us, t_h);
             self.drain_mags();
             self.correct_present();
         }
@@ -604,9 +848,14 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// delay loop (module docs). Refused, state unchanged: invalid values,
     /// a velocity beyond the loop's plausible range, time not increasing.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
-        check_time("gps", self.last_gps_us, fix.t_us)
-            .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
+        let fix = checked_gps(gps).inspect_err(|e| {
+            bump(&mut self.refusals.gps_invalid);
+            if let Error::NonFinite { field } | Error::OutOfRange { field, .. } = e
+                && field.ends_with("accuracy")
+            {
+                bump(&mut self.refusals.gps_accuracy);
+            }
+        })?;
         if fix
             .velocity_ned_m_s
             .iter()
@@ -618,15 +867,52 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 reason: "beyond the plausible range",
             });
         }
+        let geodetic = matches!(fix.position, GpsPosition::Geodetic(_));
+        if self.geodetic_fixes.is_some_and(|g| g != geodetic) {
+            bump(&mut self.refusals.gps_mixed_frames);
+            return Err(Error::OutOfRange {
+                field: "gps.position",
+                reason: "geodetic and NED fixes cannot be mixed in one run",
+            });
+        }
+        let newest_imu = self.imu_clock.last();
+        let max_jump = self.config.max_time_jump_us;
+        let mut clock = self.gps_clock;
+        counted(
+            clock.check(
+                "gps",
+                "gps.time",
+                fix.t_us,
+                newest_imu.or(Some(fix.t_us)),
+                max_jump,
+            ),
+            &mut self.refusals.gps_ahead,
+            &mut self.refusals.gps_time,
+        )?;
         self.advance_horizon_to_fix(fix.t_us);
+        if !self.ekf.is_initialized() && self.mag_clock.last().is_some() && !self.mag_at_horizon {
+            // Alignment waits for what it sets: the heading needs a
+            // magnetometer sample at the horizon, one delay after it arrived.
+            self.gps_clock = clock;
+            return Ok(GpsOutcome::Waiting);
+        }
         let outcome = self.ekf.push_gps(&fix)?;
-        self.last_gps_us = Some(fix.t_us);
+        self.gps_clock = clock;
+        self.geodetic_fixes = Some(geodetic);
         if self.is_estimating() {
             match self.delay_loop.push_gps(fix.t_us, fix.velocity_ned_m_s) {
-                Ok(Some(update)) => self.last_update = Some(update),
+                Ok(Some(update)) => {
+                    if update.axes.iter().any(|a| a.valid) {
+                        self.valid_delay_updates = self.valid_delay_updates.saturating_add(1);
+                    }
+                    self.last_update = Some(update);
+                }
                 Ok(None) => {}
                 Err(_) => bump(&mut self.refusals.delay_loop_refused),
             }
+        }
+        if outcome == GpsOutcome::Initialized {
+            self.refine_alignment(fix.velocity_ned_m_s.norm());
         }
         if matches!(outcome, GpsOutcome::Initialized | GpsOutcome::Fused { .. }) {
             self.correct_present();
@@ -638,13 +924,18 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// Refused, state unchanged: non-finite or zero field, time not increasing.
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
-        check_time("mag", self.last_mag_us, m.t_us)
-            .inspect_err(|_| bump(&mut self.refusals.mag_time))?;
+        let newest_imu = self.imu_clock.last().or(Some(m.t_us));
+        let max_jump = self.config.max_time_jump_us;
+        counted(
+            self.mag_clock
+                .check("mag", "mag.time", m.t_us, newest_imu, max_jump),
+            &mut self.refusals.mag_ahead,
+            &mut self.refusals.mag_time,
+        )?;
         if self.mags.len() == MAG_QUEUE {
             bump(&mut self.refusals.mag_dropped);
         }
         self.mags.push(m);
-        self.last_mag_us = Some(m.t_us);
         Ok(MagOutcome::Queued)
     }
 

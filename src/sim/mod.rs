@@ -55,6 +55,7 @@
 pub mod bound;
 pub mod csv;
 pub mod delay;
+pub mod faults;
 pub mod noise_floor;
 pub mod score;
 pub mod sensors;
@@ -64,6 +65,7 @@ pub use bound::{
     BoundConfig, BoundMagnetometer, BoundRms, BoundSample, TrajectoryBound, trajectory_bound,
 };
 pub use delay::{DelayProfile, DelayStep};
+pub use faults::{Fault, FaultySimulation};
 pub use noise_floor::{NoiseFloor, noise_floor};
 pub use score::{attitude_error_ned_rad, tilt_heading_error_rad};
 pub use sensors::{GpsPositionOutput, SensorConfig, VibrationHarmonic};
@@ -292,6 +294,9 @@ pub struct Simulation {
     next_mag: u64,
     next_gps: u64,
     last_imu_us: Option<u64>,
+    /// Peak-to-peak jitter of the IMU sampling instants as a fraction of the
+    /// period (0: none); set by [`Simulation::with_imu_period_jitter`].
+    imu_jitter: f64,
 }
 
 impl Simulation {
@@ -329,9 +334,37 @@ impl Simulation {
             next_mag: 0,
             next_gps: 1,
             last_imu_us: None,
+            imu_jitter: 0.0,
             trajectory,
             config,
         })
+    }
+
+    /// The same run with the IMU sampled at jittered instants: sample `n` is
+    /// taken (and stamped) at `round(n / rate + u_n j / (2 rate))` s, `u_n`
+    /// uniform in `[-1, 1]` from a hash of `(seed, n)`, so consecutive
+    /// periods vary by up to `+-j` of the nominal one (`j` = `fraction`, in
+    /// `[0, 1)`). The sensors read the truth at the jittered instant: this is
+    /// a sampling-time jitter with correct timestamps, not timestamp noise.
+    pub fn with_imu_period_jitter(mut self, fraction: f64) -> Result<Self, crate::Error> {
+        if !(0.0..1.0).contains(&fraction) {
+            return Err(crate::Error::InvalidConfig {
+                field: "imu_period_jitter",
+                reason: "must be in [0, 1)",
+            });
+        }
+        self.imu_jitter = fraction;
+        Ok(self)
+    }
+
+    /// Time of IMU sample `n`, microseconds (jittered when configured).
+    fn imu_time_us(&self, n: u64) -> u64 {
+        let rate = self.config.sensors.imu_rate_hz;
+        if self.imu_jitter == 0.0 || n == 0 {
+            return sample_time_us(n, rate);
+        }
+        let u = faults::unit_hash(self.config.seed, n) * 2.0 - 1.0;
+        ((n as f64 + 0.5 * u * self.imu_jitter) * 1e6 / rate).round() as u64
     }
 
     /// The run's configuration.
@@ -481,7 +514,7 @@ impl Iterator for Simulation {
     fn next(&mut self) -> Option<SimEvent> {
         let sensors = &self.config.sensors;
         let end = self.duration_us;
-        let imu_t = sample_time_us(self.next_imu, sensors.imu_rate_hz);
+        let imu_t = self.imu_time_us(self.next_imu);
         let mag_t = sample_time_us(self.next_mag, sensors.mag_rate_hz);
         let gps_t = sample_time_us(self.next_gps, sensors.gps_rate_hz);
         // Ties: IMU, then magnetometer, then GPS.

@@ -1,0 +1,119 @@
+//! What the navigator can vouch for: a [`Health`] value beside every estimate.
+//!
+//! [`DelayCompensatedNav::health`](super::DelayCompensatedNav::health) (and
+//! [`estimate_with_health`](super::DelayCompensatedNav::estimate_with_health))
+//! reports, at the present time:
+//!
+//! - **validity per quantity.** Tilt and heading need the alignment done
+//!   ([`AlignmentState::Aligned`]); heading also a magnetometer update fused
+//!   at the horizon within [`HEADING_STALE_US`]. Velocity and position need a
+//!   GPS fusion within [`GPS_STALE_US`] of the horizon and a standard
+//!   deviation (square root of the horizon EKF's covariance, NED axes) below
+//!   [`MAX_VELOCITY_STD_M_S`] / [`MAX_POSITION_STD_M`]. The delay is valid
+//!   in fixed mode, and in estimated mode once one loop update had a valid
+//!   axis.
+//! - **the alignment state** ([`AlignmentState`]).
+//! - **the last reset and its cause** ([`ResetRecord`]).
+//! - **refusals per sensor and reason**: the navigator's own
+//!   ([`NavRefusals`]) and the horizon EKF's
+//!   ([`RefusalCounters`]: gates, GPS resets).
+//! - **the delay status** ([`DelayStatus`]): filled from what the delay loop
+//!   exposes today (estimate, standard deviation, validity of the last
+//!   update's axes); a richer status from the loop (waiting for motion,
+//!   outside its range) is meant to replace `last_valid_axes`.
+
+use super::NavRefusals;
+use crate::ekf16::RefusalCounters;
+use crate::scalar::Scalar;
+
+/// Longest time since the last fused GPS fix for velocity and position to
+/// count as valid, µs.
+pub const GPS_STALE_US: u64 = 2_000_000;
+/// Longest time since the last fused magnetometer update for heading to
+/// count as valid, µs.
+pub const HEADING_STALE_US: u64 = 5_000_000;
+/// Largest horizontal position standard deviation counted valid, m.
+pub const MAX_POSITION_STD_M: f64 = 10.0;
+/// Largest velocity standard deviation counted valid, m/s.
+pub const MAX_VELOCITY_STD_M_S: f64 = 2.0;
+
+/// Where the navigator is in its start-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum AlignmentState {
+    /// Not enough IMU history to reach the delayed horizon yet.
+    WaitingForImu,
+    /// The horizon EKF waits for a GPS fix (and its levelling window).
+    WaitingForGps,
+    /// The horizon EKF is initialized; the present is one delay away.
+    CarryingForward,
+    /// The present estimate exists.
+    Aligned,
+}
+
+/// Why the navigator was reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum ResetCause {
+    /// [`reset`](super::DelayCompensatedNav::reset) was called (e.g. after
+    /// [`Error::TimeWentBackwards`](crate::Error::TimeWentBackwards)).
+    Requested,
+    /// An IMU gap longer than the EKF's `max_imu_step_us` restarted the
+    /// history (the EKF state is kept).
+    ImuGap,
+}
+
+/// The last reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ResetRecord {
+    /// Newest IMU time when it happened, µs (`None` before any sample).
+    pub t_us: Option<u64>,
+    /// Why.
+    pub cause: ResetCause,
+}
+
+/// The delay estimate's status.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct DelayStatus<T: Scalar> {
+    /// True when the delay is estimated online, false when fixed.
+    pub estimated: bool,
+    /// The delay, s.
+    pub delay_s: T,
+    /// Its standard deviation, s (0 when fixed).
+    pub delay_std_s: T,
+    /// Validity `V_i` of each axis at the last loop update (`None` before
+    /// the first, and in fixed mode). All false: the loop waits for motion.
+    pub last_valid_axes: Option<[bool; 3]>,
+    /// Loop updates with at least one valid axis so far.
+    pub valid_updates: u32,
+}
+
+/// What the navigator can vouch for at the present (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Health<T: Scalar> {
+    /// The present time, µs (newest accepted IMU sample).
+    pub t_us: Option<u64>,
+    /// Start-up state.
+    pub alignment: AlignmentState,
+    /// Tilt (roll, pitch) can be trusted.
+    pub tilt_valid: bool,
+    /// Heading can be trusted.
+    pub heading_valid: bool,
+    /// Velocity can be trusted.
+    pub velocity_valid: bool,
+    /// Position can be trusted.
+    pub position_valid: bool,
+    /// The delay can be trusted.
+    pub delay_valid: bool,
+    /// The last reset, if any.
+    pub last_reset: Option<ResetRecord>,
+    /// The navigator's own refusals.
+    pub refusals: NavRefusals,
+    /// The horizon EKF's refusals, gates and resets.
+    pub ekf_refusals: RefusalCounters,
+    /// The delay's status.
+    pub delay: DelayStatus<T>,
+}
