@@ -48,8 +48,11 @@
 //! # Scoring helpers
 //! [`delay_bound_s`] is the physical yardstick for any delay estimate on a
 //! run: how well GPS velocities over a window can pin the delay at all.
-//! [`noise_floor()`] derives what Table 3's noise allows any filter to reach.
+//! [`noise_floor()`] derives what Table 3's noise allows any filter to reach
+//! at hover; [`trajectory_bound()`] what the run's own sensors allow along
+//! its true trajectory, biases and delay included.
 
+pub mod bound;
 pub mod csv;
 pub mod delay;
 pub mod faults;
@@ -58,6 +61,9 @@ pub mod score;
 pub mod sensors;
 pub mod trajectory;
 
+pub use bound::{
+    BoundConfig, BoundMagnetometer, BoundRms, BoundSample, TrajectoryBound, trajectory_bound,
+};
 pub use delay::{DelayProfile, DelayRamp, DelayStep};
 pub use faults::{Fault, FaultySimulation};
 pub use noise_floor::{NoiseFloor, noise_floor};
