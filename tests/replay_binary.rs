@@ -420,3 +420,46 @@ fn ulog_cut_and_corrupt_files_are_reported() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn flight_window_of_log171_is_the_flight_before_the_crash() {
+    use delaynav::replay::flight_window;
+    let Some(bin) = shared("ardupilot-log171/log171.bin") else {
+        return;
+    };
+    let options = ReaderOptions::default();
+    let window = |inputs: &[&Path]| {
+        flight_window(LogReader::<f64>::open_paths(inputs, None, &options).unwrap()).unwrap()
+    };
+    let from_bin = window(&[&bin]);
+    assert_eq!(from_bin, window(&[bin.parent().unwrap()]));
+    // The README: flight from about 75 s, a hard impact at about 230-245 s
+    // (|acc| up to 108 m/s^2). The window starts once moving and ends before it.
+    let (from_s, to_s) = (from_bin.from_us as f64 * 1e-6, from_bin.to_us as f64 * 1e-6);
+    assert!((75.0..95.0).contains(&from_s), "from {from_s}");
+    let impact_s = from_bin.impact_us.unwrap() as f64 * 1e-6;
+    assert!((230.0..245.0).contains(&impact_s), "impact {impact_s}");
+    assert!(to_s < impact_s && to_s > 220.0, "to {to_s}");
+}
+
+#[test]
+fn flight_windows_of_the_ulog_samples() {
+    use delaynav::replay::flight_window;
+    let (Some(events), Some(small)) = (
+        shared("px4-pyulog-sample/sample_px4_events.ulg"),
+        shared("px4-pyulog-sample/sample_log_small.ulg"),
+    ) else {
+        return;
+    };
+    let open = |path: &Path| {
+        LogReader::<f32>::open_paths(&[path], None, &ReaderOptions::default()).unwrap()
+    };
+    // The SITL vehicle hops: up at about 0.9 m/s, down at 0.8 m/s, no
+    // horizontal motion (below 0.05 m/s).
+    let hop = flight_window(open(&events)).unwrap();
+    let seconds = (hop.to_us - hop.from_us) as f64 * 1e-6;
+    assert!((3.0..10.0).contains(&seconds), "{hop:?}");
+    assert_eq!(hop.impact_us, None);
+    // The CubeOrange log never leaves the ground.
+    assert_eq!(flight_window(open(&small)), None);
+}

@@ -19,7 +19,7 @@ use clap::Parser;
 use delaynav::replay::{
     ArduPilotImu, EstimateWriter, LogFiles, LogFormat, LogReader, ReaderOptions,
     ReferenceAlignment, ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
-    dataflash::DataFlashLog, inclination_at_rest, replay,
+    dataflash::DataFlashLog, flight_window, inclination_at_rest, replay,
 };
 use delaynav::{
     Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
@@ -51,12 +51,17 @@ struct Args {
     /// Seconds added to every GPS receive time (the added-delay experiment).
     #[arg(long, default_value_t = 0.0)]
     add_gps_delay: f64,
-    /// Start of the scored window, seconds on the log's clock.
+    /// Start of the scored window, seconds on the log's clock (default: the
+    /// take-off found in the log).
     #[arg(long)]
     from: Option<f64>,
-    /// End of the replayed and scored window, seconds.
+    /// End of the replayed and scored window, seconds (default: the landing
+    /// found in the log, cut 2 s before an impact).
     #[arg(long)]
     to: Option<f64>,
+    /// Set for the simulated run: its window is fixed, not found.
+    #[arg(skip)]
+    simulated: bool,
     /// Seconds replayed before `--from` so the estimators initialize and
     /// converge; not scored.
     #[arg(long, default_value_t = 30.0)]
@@ -330,11 +335,41 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
             .accel_bias_random_walk
             .unwrap_or(defaults.accel_bias_random_walk),
     };
-    let score_from_us = args.from.map(seconds_to_us);
+    // The flight window from the log, unless both ends are given.
+    let found = if args.simulated || (args.from.is_some() && args.to.is_some()) {
+        None
+    } else {
+        let window = flight_window(LogReader::<f64>::open(&files, &reader)?);
+        match window {
+            Some(w) => eprintln!(
+                "flight window from the log: {:.1}-{:.1} s (take-off {:.1} s, landing {:.1} s, {}){}",
+                w.from_us as f64 * 1e-6,
+                w.to_us as f64 * 1e-6,
+                w.from_us as f64 * 1e-6,
+                w.landing_us as f64 * 1e-6,
+                w.impact_us.map_or_else(
+                    || "no impact".to_string(),
+                    |t| format!("impact at {:.1} s, cut 2 s before", t as f64 * 1e-6)
+                ),
+                if args.from.is_some() || args.to.is_some() {
+                    "; --from/--to override it"
+                } else {
+                    ""
+                },
+            ),
+            None => {
+                eprintln!("no flight found in the log (no GPS fix moving): scoring the whole log")
+            }
+        }
+        window
+    };
+    let from_s = args.from.or(found.map(|w| w.from_us as f64 * 1e-6));
+    let to_s = args.to.or(found.map(|w| w.to_us as f64 * 1e-6));
+    let score_from_us = from_s.map(seconds_to_us);
     let run = RunOptions {
-        start_us: args.from.map(|f| seconds_to_us(f - args.warmup)),
+        start_us: from_s.map(|f| seconds_to_us(f - args.warmup)),
         score_from_us,
-        end_us: args.to.map(seconds_to_us),
+        end_us: to_s.map(seconds_to_us),
         alignment,
         estimator_declination_rad: alignment.declination_rad,
         ..RunOptions::default()
@@ -430,6 +465,7 @@ fn simulated_log(args: &mut Args) -> Result<(), Failure> {
         dir.display()
     );
     args.inputs = vec![dir];
+    args.simulated = true;
     args.declination_deg
         .get_or_insert(field.y.atan2(field.x).to_degrees());
     args.inclination_deg
@@ -537,6 +573,10 @@ fn run(mut args: Args) -> Result<(), Failure> {
             "replayed_from_s": setup.run.start_us.map(|t| t as f64 * 1e-6),
             "scored_from_s": setup.run.score_from_us.map(|t| t as f64 * 1e-6),
             "to_s": setup.run.end_us.map(|t| t as f64 * 1e-6),
+            "window_s": [
+                setup.run.score_from_us.map(|t| t as f64 * 1e-6),
+                setup.run.end_us.map(|t| t as f64 * 1e-6),
+            ],
             "declination_deg": setup.declination_rad.to_degrees(),
             "inclination_deg": setup.inclination_rad.to_degrees(),
             "imu_rate_hz": setup.imu_rate_hz,

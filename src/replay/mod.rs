@@ -48,9 +48,11 @@ pub mod estimates_csv;
 pub mod px4;
 pub mod run;
 pub mod ulog;
+pub mod window;
 
 pub use estimates_csv::EstimateWriter;
 pub use run::{ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
+pub use window::{FlightWindow, flight_window};
 
 use crate::error::Error;
 use crate::geo::quaternion_from_euler;

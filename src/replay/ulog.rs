@@ -1,21 +1,33 @@
-//! Reader of PX4 ULog binary logs (`.ulg`), on the PX4 organisation's
-//! `px4-ulog` crate (see `docs/replay.md` for why).
+//! Reader of PX4 ULog binary logs (`.ulg`), written for this crate on the
+//! published format (see `docs/replay.md` for why `px4-ulog` is not used).
+//!
+//! # Format
+//! A 16-byte header (`ULog 01 12 35`, version, start time), then messages
+//! `u16 size, u8 type, body`: `B` flag bits (appended-data offsets), `F`
+//! formats (`name:type field;type[n] field;...`, types `int8_t` ...
+//! `uint64_t`, `float`, `double`, `bool`, `char` or another format), `A`
+//! subscriptions (`multi_id u8, msg_id u16, format name`), `D` data
+//! (`msg_id u16`, then the fields packed little-endian in format order,
+//! padding included), `R` unsubscribe, and information, parameter, logging,
+//! sync and dropout messages (skipped). Data sections appended after a crash
+//! (flag bits) are read from their offsets.
 //!
 //! The topics, fields, units and checks are those of the `ulog2csv` reader
 //! ([`super::px4`]): `sensor_combined` (IMU; multi-id = the IMU instance),
 //! `vehicle_gps_position` (else `sensor_gps`, multi-id 0),
 //! `vehicle_magnetometer` (multi-id 0) and `vehicle_attitude` (reference).
 //! Every data message of those subscriptions is one row: the counts equal
-//! pyulog's (tested on `../shared/data/px4-pyulog-sample`). Appended data
-//! sections are read.
+//! pyulog's (tested on `../shared/data/px4-pyulog-sample`).
 //!
 //! # Bad bytes
-//! `px4-ulog` parses the whole file when the log is opened. A header or
-//! definitions section that cannot be parsed, or a malformed record in the
-//! data section, is a [`ReplayError::Corrupt`] carrying the parser's
-//! description (the crate reports no byte offset). A file cut inside a record
-//! (power loss) keeps the records before it and counts the cut one as an
-//! [`SkipKind::Unparsable`] row of the file.
+//! The whole file is checked when it is opened. No header, unknown
+//! incompatible flags, an appended-data offset outside the file, a message
+//! too short for its type, an unknown message type, a format that is not
+//! `name:type field;...` or nests undefined formats, or data for a msg_id
+//! never subscribed: a [`ReplayError::Corrupt`] naming the byte offset and
+//! the message type. A file (or the main section before appended data) that
+//! ends inside a message keeps the messages before it and counts the cut one
+//! as an [`SkipKind::Unparsable`] row of the file.
 
 use super::px4::{
     ACCEL_FIELDS, ACCEL_RELATIVE_FIELD, ATTITUDE_FIELDS, ATTITUDE_TOPIC, GPS_ACCURACY_FIELDS,
@@ -30,27 +42,19 @@ use super::{
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
 use nalgebra::Vector3;
-use px4_ulog::stream_parser::model::{Completeness, FlattenedFieldType, FlattenedFormat};
-use px4_ulog::stream_parser::{DataMessage, Message, SimpleCallbackResult};
 use std::collections::HashMap;
+use std::fmt;
 use std::path::Path;
 
 /// The first bytes of every ULog file.
 pub const MAGIC: &[u8] = b"ULog";
 
 /// One data message of a wanted topic: its timestamp and the wanted fields
-/// (`None` when the topic lacks a field or it is not a number).
+/// (`None` when the topic lacks a field, it is not a number, or the message
+/// is too short to hold it).
 struct Row {
     t_us: Option<u64>,
     values: Vec<Option<f64>>,
-}
-
-/// How to read the wanted fields out of one subscription's messages.
-struct Plan {
-    topic: usize,
-    multi_id: u8,
-    fields: Vec<Option<(FlattenedFieldType, usize)>>,
-    timestamp: Option<usize>,
 }
 
 /// What is read from a log: for each topic, the fields wanted.
@@ -58,11 +62,11 @@ struct Wanted<'w> {
     topics: &'w [(&'static str, Vec<&'static str>)],
 }
 
-/// The rows of the wanted topics by `(topic index, multi-id)`, and whether
-/// the file was cut inside a record.
+/// The rows of the wanted topics by `(topic index, multi-id)`, and the
+/// records the file or a section ends inside of.
 struct Decoded {
     rows: HashMap<(usize, u8), Vec<Row>>,
-    truncated: bool,
+    truncated: u64,
 }
 
 impl Decoded {
@@ -71,22 +75,271 @@ impl Decoded {
     }
 }
 
-fn plan(format: &FlattenedFormat, topic: usize, multi_id: u8, wanted: &[&str]) -> Plan {
-    let find = |name: &str| {
-        format
-            .field_iter()
-            .find(|f| f.flattened_field_name == name)
-            .map(|f| (f.field_type.clone(), usize::from(f.offset)))
+/// Why a ULog file is corrupt.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum UlogFault {
+    /// The file does not start with the 16-byte ULog header.
+    BadHeader,
+    /// The flag bits mark an incompatibility this reader does not know.
+    UnknownIncompatibleFlags([u8; 8]),
+    /// An appended-data offset points outside the file or backwards.
+    BadAppendedOffset(u64),
+    /// A message is shorter than its type requires.
+    ShortMessage {
+        /// Bytes required.
+        needed: usize,
+        /// Bytes present.
+        size: usize,
+    },
+    /// A message type letter that ULog does not define.
+    UnknownMessageType(u8),
+    /// A format or subscription is not `name:type field;...` text.
+    BadFormat(String),
+    /// A subscription names a format that was not defined, or nests
+    /// formats too deeply (a cycle).
+    UnknownFormat(String),
+    /// A data message's subscription was not added.
+    UnknownSubscription(u16),
+}
+
+impl fmt::Display for UlogFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::BadHeader => write!(f, "no ULog header (ULog 01 12 35 version timestamp)"),
+            Self::UnknownIncompatibleFlags(flags) => {
+                write!(f, "unknown incompatible flags {flags:02X?}")
+            }
+            Self::BadAppendedOffset(o) => write!(f, "appended data offset {o} is invalid"),
+            Self::ShortMessage { needed, size } => {
+                write!(f, "message of {size} bytes, its type needs {needed}")
+            }
+            Self::UnknownMessageType(t) => write!(f, "unknown message type 0x{t:02X}"),
+            Self::BadFormat(why) => write!(f, "bad format: {why}"),
+            Self::UnknownFormat(name) => write!(f, "format `{name}` is not defined"),
+            Self::UnknownSubscription(id) => write!(f, "data for msg_id {id}, never subscribed"),
+        }
+    }
+}
+
+/// A corrupt ULog message: where it is and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UlogError {
+    /// Byte offset of the message in the file.
+    pub offset: u64,
+    /// The message type letter (`F`, `A`, `D`...) when the header was read.
+    pub record: Option<char>,
+    /// What is wrong.
+    pub fault: UlogFault,
+}
+
+impl UlogError {
+    /// The replay error for the log at `path`.
+    pub fn at(self, path: &Path) -> ReplayError {
+        ReplayError::Corrupt {
+            path: path.to_path_buf(),
+            offset: Some(self.offset),
+            record: self.record.map(|c| format!("ULog message '{c}'")),
+            reason: self.fault.to_string(),
+        }
+    }
+}
+
+/// Bytes of the file header.
+const HEADER_LENGTH: usize = 16;
+/// Bytes of a message header (`u16 size, u8 type`).
+const MESSAGE_HEADER: usize = 3;
+/// Deepest nesting of formats accepted.
+const MAX_NESTING: usize = 16;
+/// The incompatible flag bit for appended data.
+const DATA_APPENDED: u8 = 1;
+
+/// A basic ULog type: its size and how to read it as a number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Basic {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+    Bool,
+    Char,
+}
+
+impl Basic {
+    fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "int8_t" => Self::I8,
+            "uint8_t" => Self::U8,
+            "int16_t" => Self::I16,
+            "uint16_t" => Self::U16,
+            "int32_t" => Self::I32,
+            "uint32_t" => Self::U32,
+            "int64_t" => Self::I64,
+            "uint64_t" => Self::U64,
+            "float" => Self::F32,
+            "double" => Self::F64,
+            "bool" => Self::Bool,
+            "char" => Self::Char,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Self::I8 | Self::U8 | Self::Bool | Self::Char => 1,
+            Self::I16 | Self::U16 => 2,
+            Self::I32 | Self::U32 | Self::F32 => 4,
+            Self::I64 | Self::U64 | Self::F64 => 8,
+        }
+    }
+
+    fn read(self, data: &[u8], offset: usize) -> Option<f64> {
+        Some(match self {
+            Self::I8 => f64::from(i8::from_le_bytes(bytes_at(data, offset)?)),
+            Self::U8 | Self::Bool => f64::from(u8::from_le_bytes(bytes_at(data, offset)?)),
+            Self::I16 => f64::from(i16::from_le_bytes(bytes_at(data, offset)?)),
+            Self::U16 => f64::from(u16::from_le_bytes(bytes_at(data, offset)?)),
+            Self::I32 => f64::from(i32::from_le_bytes(bytes_at(data, offset)?)),
+            Self::U32 => f64::from(u32::from_le_bytes(bytes_at(data, offset)?)),
+            Self::I64 => i64::from_le_bytes(bytes_at(data, offset)?) as f64,
+            Self::U64 => u64::from_le_bytes(bytes_at(data, offset)?) as f64,
+            Self::F32 => f64::from(f32::from_le_bytes(bytes_at(data, offset)?)),
+            Self::F64 => f64::from_le_bytes(bytes_at(data, offset)?),
+            Self::Char => return None,
+        })
+    }
+}
+
+/// One field of a format as written: type name, array length, field name.
+#[derive(Debug, Clone)]
+struct FieldDef {
+    kind: String,
+    count: usize,
+    name: String,
+}
+
+/// Parses `name:type field;type[n] field;...`.
+fn parse_format(text: &str) -> Result<(String, Vec<FieldDef>), UlogFault> {
+    let bad = |why: &str| UlogFault::BadFormat(why.to_string());
+    let (name, body) = text.split_once(':').ok_or_else(|| bad("no `:`"))?;
+    let mut fields = Vec::new();
+    for field in body.split(';').filter(|f| !f.is_empty()) {
+        let (kind, field_name) = field
+            .trim()
+            .split_once(' ')
+            .ok_or_else(|| bad("a field without a type"))?;
+        let (kind, count) = match kind.split_once('[') {
+            Some((k, n)) => {
+                let n = n.strip_suffix(']').ok_or_else(|| bad("unclosed `[`"))?;
+                (k, n.parse::<usize>().map_err(|_| bad("array length"))?)
+            }
+            None => (kind, 1),
+        };
+        fields.push(FieldDef {
+            kind: kind.to_string(),
+            count,
+            name: field_name.trim().to_string(),
+        });
+    }
+    Ok((name.to_string(), fields))
+}
+
+/// The byte size of format `name`, nested formats included.
+fn format_size(
+    formats: &HashMap<String, Vec<FieldDef>>,
+    name: &str,
+    depth: usize,
+) -> Result<usize, UlogFault> {
+    let unknown = || UlogFault::UnknownFormat(name.to_string());
+    if depth > MAX_NESTING {
+        return Err(unknown());
+    }
+    let fields = formats.get(name).ok_or_else(unknown)?;
+    let mut size: usize = 0;
+    for f in fields {
+        let one = match Basic::parse(&f.kind) {
+            Some(b) => b.size(),
+            None => format_size(formats, &f.kind, depth + 1)?,
+        };
+        size = one
+            .checked_mul(f.count)
+            .and_then(|s| size.checked_add(s))
+            .ok_or_else(unknown)?;
+    }
+    Ok(size)
+}
+
+/// How to read the wanted fields out of one subscription's data messages
+/// (offsets into the payload after the `msg_id`).
+struct Plan {
+    topic: usize,
+    multi_id: u8,
+    fields: Vec<Option<(Basic, usize)>>,
+    timestamp: Option<usize>,
+}
+
+/// Where top-level field `wanted` (`name` or `name[i]`) of a basic type lies.
+fn locate_field(
+    formats: &HashMap<String, Vec<FieldDef>>,
+    fields: &[FieldDef],
+    wanted: &str,
+) -> Result<Option<(Basic, usize)>, UlogFault> {
+    let (name, index) = match wanted.split_once('[') {
+        Some((n, i)) => (n, i.trim_end_matches(']').parse::<usize>().ok()),
+        None => (wanted, None),
     };
-    Plan {
+    let mut offset = 0;
+    for f in fields {
+        let basic = Basic::parse(&f.kind);
+        let one = match basic {
+            Some(b) => b.size(),
+            None => format_size(formats, &f.kind, 1)?,
+        };
+        if f.name == name {
+            let i = index.unwrap_or(0);
+            let is_array = f.count > 1 || index.is_some();
+            return Ok(match basic {
+                Some(b) if i < f.count && (is_array == index.is_some()) => {
+                    Some((b, offset + i * one))
+                }
+                _ => None,
+            });
+        }
+        offset += one * f.count;
+    }
+    Ok(None)
+}
+
+fn plan(
+    formats: &HashMap<String, Vec<FieldDef>>,
+    format: &str,
+    topic: usize,
+    multi_id: u8,
+    wanted: &[&str],
+) -> Result<Plan, UlogFault> {
+    let fields = formats
+        .get(format)
+        .ok_or_else(|| UlogFault::UnknownFormat(format.to_string()))?;
+    format_size(formats, format, 0)?;
+    let timestamp = match locate_field(formats, fields, "timestamp")? {
+        Some((Basic::U64, o)) => Some(o),
+        _ => None,
+    };
+    Ok(Plan {
         topic,
         multi_id,
-        fields: wanted.iter().map(|n| find(n)).collect(),
-        timestamp: format
-            .timestamp_field
-            .as_ref()
-            .map(|t| usize::from(t.offset)),
-    }
+        fields: wanted
+            .iter()
+            .map(|w| locate_field(formats, fields, w))
+            .collect::<Result<_, _>>()?,
+        timestamp,
+    })
 }
 
 /// `N` bytes at `offset`, if the message holds them.
@@ -94,99 +347,178 @@ fn bytes_at<const N: usize>(data: &[u8], offset: usize) -> Option<[u8; N]> {
     data.get(offset..offset.checked_add(N)?)?.try_into().ok()
 }
 
-/// A field's value as a number.
-fn value(data: &[u8], kind: &FlattenedFieldType, offset: usize) -> Option<f64> {
-    use FlattenedFieldType as F;
-    Some(match kind {
-        F::Int8 => f64::from(i8::from_le_bytes(bytes_at(data, offset)?)),
-        F::UInt8 | F::Bool => f64::from(u8::from_le_bytes(bytes_at(data, offset)?)),
-        F::Int16 => f64::from(i16::from_le_bytes(bytes_at(data, offset)?)),
-        F::UInt16 => f64::from(u16::from_le_bytes(bytes_at(data, offset)?)),
-        F::Int32 => f64::from(i32::from_le_bytes(bytes_at(data, offset)?)),
-        F::UInt32 => f64::from(u32::from_le_bytes(bytes_at(data, offset)?)),
-        F::Int64 => i64::from_le_bytes(bytes_at(data, offset)?) as f64,
-        F::UInt64 => u64::from_le_bytes(bytes_at(data, offset)?) as f64,
-        F::Float => f64::from(f32::from_le_bytes(bytes_at(data, offset)?)),
-        F::Double => f64::from_le_bytes(bytes_at(data, offset)?),
-        F::Char => return None,
-    })
-}
-
-fn row(plan: &Plan, msg: &DataMessage<'_>) -> Row {
+fn row(plan: &Plan, payload: &[u8]) -> Row {
     Row {
         t_us: plan
             .timestamp
-            .and_then(|o| bytes_at(msg.data, o))
+            .and_then(|o| bytes_at(payload, o))
             .map(u64::from_le_bytes),
         values: plan
             .fields
             .iter()
-            .map(|f| f.as_ref().and_then(|(kind, o)| value(msg.data, kind, *o)))
+            .map(|f| f.and_then(|(kind, o)| kind.read(payload, o)))
             .collect(),
     }
 }
 
+/// Text of a message body.
+fn text(body: &[u8]) -> Result<&str, UlogFault> {
+    std::str::from_utf8(body).map_err(|_| UlogFault::BadFormat("not UTF-8".to_string()))
+}
+
+/// The incompatible flags of a flag-bits body, checked; whether data is appended.
+fn check_flags(body: &[u8]) -> Result<bool, UlogFault> {
+    let incompatible: [u8; 8] = bytes_at(body, 8).unwrap_or([0; 8]);
+    let known = [DATA_APPENDED, 0, 0, 0, 0, 0, 0, 0];
+    if incompatible.iter().zip(known).any(|(f, k)| f & !k != 0) {
+        return Err(UlogFault::UnknownIncompatibleFlags(incompatible));
+    }
+    Ok(incompatible[0] & DATA_APPENDED != 0)
+}
+
+/// The byte ranges to parse: after the header up to the first appended-data
+/// offset, then each appended section up to the next one or the end. The
+/// flag bits, when present, are the first message.
+fn sections(bytes: &[u8]) -> Result<Vec<(usize, usize)>, UlogError> {
+    let mut sections = vec![(HEADER_LENGTH, bytes.len())];
+    let at = HEADER_LENGTH;
+    let Some(head) = bytes.get(at..at + MESSAGE_HEADER) else {
+        return Ok(sections);
+    };
+    let size = usize::from(u16::from_le_bytes([head[0], head[1]]));
+    let body_start = at + MESSAGE_HEADER;
+    let (Some(body), b'B') = (bytes.get(body_start..body_start + size), head[2]) else {
+        return Ok(sections);
+    };
+    let fail = |fault| UlogError {
+        offset: at as u64,
+        record: Some('B'),
+        fault,
+    };
+    if size < 40 {
+        return Err(fail(UlogFault::ShortMessage { needed: 40, size }));
+    }
+    if !check_flags(body).map_err(fail)? {
+        return Ok(sections);
+    }
+    let mut previous = body_start + size;
+    for o in (0..3).filter_map(|i| bytes_at(body, 16 + 8 * i).map(u64::from_le_bytes)) {
+        if o == 0 {
+            continue;
+        }
+        let start = usize::try_from(o)
+            .ok()
+            .filter(|&s| s >= previous && s <= bytes.len())
+            .ok_or_else(|| fail(UlogFault::BadAppendedOffset(o)))?;
+        if let Some(last) = sections.last_mut() {
+            last.1 = start;
+        }
+        sections.push((start, bytes.len()));
+        previous = start;
+    }
+    Ok(sections)
+}
+
+/// Parses a whole log, keeping the wanted topics' rows (see the module's
+/// "Bad bytes").
+fn decode_bytes(bytes: &[u8], wanted: &Wanted<'_>) -> Result<Decoded, UlogError> {
+    let error = |offset: usize, record: Option<u8>, fault| UlogError {
+        offset: offset as u64,
+        record: record.map(char::from),
+        fault,
+    };
+    if bytes.len() < HEADER_LENGTH || !bytes.starts_with(MAGIC) || bytes[4..7] != [1, 0x12, 0x35] {
+        return Err(error(0, None, UlogFault::BadHeader));
+    }
+    let mut formats: HashMap<String, Vec<FieldDef>> = HashMap::new();
+    let mut plans: HashMap<u16, Option<Plan>> = HashMap::new();
+    let mut decoded = Decoded {
+        rows: HashMap::new(),
+        truncated: 0,
+    };
+    let sections = sections(bytes)?;
+    for &(start, end) in &sections {
+        let mut pos = start;
+        while pos < end {
+            if end - pos < MESSAGE_HEADER {
+                decoded.truncated += 1;
+                break;
+            }
+            let size = usize::from(u16::from_le_bytes([bytes[pos], bytes[pos + 1]]));
+            let kind = bytes[pos + 2];
+            let body_start = pos + MESSAGE_HEADER;
+            if end - body_start < size {
+                decoded.truncated += 1;
+                break;
+            }
+            let body = &bytes[body_start..body_start + size];
+            let fail = |fault| error(pos, Some(kind), fault);
+            let need = |n: usize| {
+                if size < n {
+                    Err(fail(UlogFault::ShortMessage { needed: n, size }))
+                } else {
+                    Ok(())
+                }
+            };
+            match kind {
+                b'B' => {
+                    need(40)?;
+                    check_flags(body).map_err(fail)?;
+                }
+                b'F' => {
+                    let (name, fields) = parse_format(text(body).map_err(fail)?).map_err(fail)?;
+                    formats.insert(name, fields);
+                }
+                b'A' => {
+                    need(3)?;
+                    let multi_id = body[0];
+                    let msg_id = u16::from_le_bytes([body[1], body[2]]);
+                    let name = text(&body[3..]).map_err(fail)?;
+                    let plan = match wanted.topics.iter().position(|(t, _)| *t == name) {
+                        Some(topic) => Some(
+                            plan(&formats, name, topic, multi_id, &wanted.topics[topic].1)
+                                .map_err(fail)?,
+                        ),
+                        None => {
+                            format_size(&formats, name, 0).map_err(fail)?;
+                            None
+                        }
+                    };
+                    plans.insert(msg_id, plan);
+                }
+                b'D' => {
+                    need(2)?;
+                    let msg_id = u16::from_le_bytes([body[0], body[1]]);
+                    match plans.get(&msg_id) {
+                        Some(Some(p)) => decoded
+                            .rows
+                            .entry((p.topic, p.multi_id))
+                            .or_default()
+                            .push(row(p, &body[2..])),
+                        Some(None) => {}
+                        None => return Err(fail(UlogFault::UnknownSubscription(msg_id))),
+                    }
+                }
+                b'R' => {
+                    need(2)?;
+                    plans.remove(&u16::from_le_bytes([body[0], body[1]]));
+                }
+                b'I' | b'M' | b'P' | b'Q' | b'L' | b'C' | b'S' | b'O' => {}
+                other => return Err(fail(UlogFault::UnknownMessageType(other))),
+            }
+            pos = body_start + size;
+        }
+    }
+    Ok(decoded)
+}
+
 /// Parses the log at `path`, keeping the wanted topics' rows.
 fn decode(path: &Path, wanted: &Wanted<'_>) -> Result<Decoded, ReplayError> {
-    let corrupt = |reason: String| ReplayError::Corrupt {
+    let bytes = std::fs::read(path).map_err(|source| ReplayError::Open {
         path: path.to_path_buf(),
-        offset: None,
-        record: None,
-        reason,
-    };
-    let name = path.to_str().ok_or_else(|| ReplayError::Open {
-        path: path.to_path_buf(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "path is not UTF-8"),
+        source,
     })?;
-    let mut plans: HashMap<u16, Plan> = HashMap::new();
-    let mut rows: HashMap<(usize, u8), Vec<Row>> = HashMap::new();
-    let mut callback = |message: &Message<'_>| {
-        if let Message::Data(msg) = message {
-            let format = msg.flattened_format;
-            let multi_id = msg.multi_id.value();
-            let stale = plans.get(&msg.msg_id).is_none_or(|p| {
-                p.multi_id != multi_id || wanted.topics[p.topic].0 != format.message_name()
-            });
-            if stale {
-                plans.remove(&msg.msg_id);
-                if let Some(topic) = wanted
-                    .topics
-                    .iter()
-                    .position(|(t, _)| *t == format.message_name())
-                {
-                    let p = plan(format, topic, multi_id, &wanted.topics[topic].1);
-                    plans.insert(msg.msg_id, p);
-                }
-            }
-            if let Some(p) = plans.get(&msg.msg_id) {
-                rows.entry((p.topic, p.multi_id))
-                    .or_default()
-                    .push(row(p, msg));
-            }
-        }
-        SimpleCallbackResult::KeepReading
-    };
-    let completeness = px4_ulog::stream_parser::read_file_with_simple_callback(name, &mut callback)
-        .map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound | std::io::ErrorKind::PermissionDenied => {
-                ReplayError::Open {
-                    path: path.to_path_buf(),
-                    source: e,
-                }
-            }
-            _ => corrupt(format!("header or definitions: {e}")),
-        })?;
-    match completeness {
-        Completeness::Complete => Ok(Decoded {
-            rows,
-            truncated: false,
-        }),
-        Completeness::Truncated => Ok(Decoded {
-            rows,
-            truncated: true,
-        }),
-        Completeness::MalformedRecord(why) => Err(corrupt(format!("malformed record: {why}"))),
-    }
+    decode_bytes(&bytes, wanted).map_err(|e| e.at(path))
 }
 
 /// The value of field `i` of a row, or why the row is skipped.
@@ -274,7 +606,7 @@ pub(crate) fn open_streams<T: Scalar>(
     let mut decoded = decode(path, &Wanted { topics: &topics })?;
     let file = file_label(path);
     let mut skips = SkipCounts::default();
-    if decoded.truncated {
+    for _ in 0..decoded.truncated {
         skips.skip(&file, SkipKind::Unparsable);
     }
     let imu = decoded
