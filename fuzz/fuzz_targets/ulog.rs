@@ -1,6 +1,5 @@
-//! PX4 ULog `.ulg`: the whole reader on the bytes written as a file (the
-//! `px4-ulog` parser reads files by path). Inputs start with the magic so
-//! the fuzzer spends its time past the header.
+//! PX4 ULog `.ulg`: the whole reader on the bytes written as a file. Inputs
+//! start with the magic so the fuzzer spends its time past the header.
 #![no_main]
 
 mod common;

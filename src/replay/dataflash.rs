@@ -186,8 +186,8 @@ fn text(bytes: &[u8]) -> Option<&str> {
     std::str::from_utf8(&bytes[..end]).ok()
 }
 
-/// `N` little-endian bytes at `offset`, if the payload holds them.
-fn bytes_at<const N: usize>(payload: &[u8], offset: usize) -> Option<[u8; N]> {
+/// `N` bytes at `offset`, if the payload holds them (also used by the ULog reader).
+pub(crate) fn bytes_at<const N: usize>(payload: &[u8], offset: usize) -> Option<[u8; N]> {
     payload.get(offset..offset.checked_add(N)?)?.try_into().ok()
 }
 

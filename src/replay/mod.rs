@@ -647,7 +647,10 @@ impl<T: Scalar> MergeInput<T> {
     fn advance(&mut self, skips: &mut SkipCounts) {
         self.head = self.stream.next_value(skips).map(|mut e| {
             if let SensorEvent::Gps(g) = &mut e {
-                g.t_us += self.shift_us;
+                // Saturates instead of overflowing: a receive time within
+                // the added delay of u64::MAX µs (584,000 years) is kept
+                // at u64::MAX, still after every earlier sample.
+                g.t_us = g.t_us.saturating_add(self.shift_us);
             }
             e
         });

@@ -34,6 +34,7 @@ use super::px4::{
     GPS_POSITION_FIELDS, GPS_TOPICS, GPS_VELOCITY_FIELDS, GYRO_FIELDS, IMU_TOPIC, MAG_FIELDS,
     MAG_TOPIC, MIN_FIX_TYPE, OLD_GPS_POSITION_SCALE, RELATIVE_TIMESTAMP_INVALID,
 };
+use super::dataflash::bytes_at;
 use super::table::{RowStream, file_label, quaternion_wxyz};
 use super::{
     GpsRow, GpsRowPosition, ReferenceSample, ReplayError, SensorEvent, SensorStreams, SkipCounts,
@@ -340,11 +341,6 @@ fn plan(
             .collect::<Result<_, _>>()?,
         timestamp,
     })
-}
-
-/// `N` bytes at `offset`, if the message holds them.
-fn bytes_at<const N: usize>(data: &[u8], offset: usize) -> Option<[u8; N]> {
-    data.get(offset..offset.checked_add(N)?)?.try_into().ok()
 }
 
 fn row(plan: &Plan, payload: &[u8]) -> Row {
