@@ -574,8 +574,8 @@ fn run(mut args: Args) -> Result<(), Failure> {
             "scored_from_s": setup.run.score_from_us.map(|t| t as f64 * 1e-6),
             "to_s": setup.run.end_us.map(|t| t as f64 * 1e-6),
             "window_s": [
-                setup.run.score_from_us.map(|t| t as f64 * 1e-6),
-                setup.run.end_us.map(|t| t as f64 * 1e-6),
+                setup.run.score_from_us.map(|t| t as f64 / 1e6),
+                setup.run.end_us.map(|t| t as f64 / 1e6),
             ],
             "declination_deg": setup.declination_rad.to_degrees(),
             "inclination_deg": setup.inclination_rad.to_degrees(),

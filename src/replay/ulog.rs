@@ -29,12 +29,12 @@
 //! ends inside a message keeps the messages before it and counts the cut one
 //! as an [`SkipKind::Unparsable`] row of the file.
 
+use super::dataflash::bytes_at;
 use super::px4::{
     ACCEL_FIELDS, ACCEL_RELATIVE_FIELD, ATTITUDE_FIELDS, ATTITUDE_TOPIC, GPS_ACCURACY_FIELDS,
     GPS_POSITION_FIELDS, GPS_TOPICS, GPS_VELOCITY_FIELDS, GYRO_FIELDS, IMU_TOPIC, MAG_FIELDS,
     MAG_TOPIC, MIN_FIX_TYPE, OLD_GPS_POSITION_SCALE, RELATIVE_TIMESTAMP_INVALID,
 };
-use super::dataflash::bytes_at;
 use super::table::{RowStream, file_label, quaternion_wxyz};
 use super::{
     GpsRow, GpsRowPosition, ReferenceSample, ReplayError, SensorEvent, SensorStreams, SkipCounts,
