@@ -1,6 +1,10 @@
 //! One prediction step and one GPS update of `Ekf16` and of
 //! `AugmentedEkf17`, in f32 and f64, in one run so the ratio is measured on the same
 //! machine state.
+//!
+//! Comparing two commits: build each (`cargo bench --bench ekf16 --no-run`),
+//! run the older with `--bench --save-baseline main` and the newer with
+//! `--bench --baseline main` one after the other.
 
 use criterion::measurement::WallTime;
 use criterion::{BatchSize, BenchmarkGroup, Criterion, criterion_group, criterion_main};
@@ -54,12 +58,14 @@ fn bench_filter<T: Scalar, N: Navigator<T> + Clone>(
         })
     });
     group.bench_function(format!("{filter}_gps_update"), |b| {
-        // Each iteration fuses one fix into a copy of the same filter.
+        // Each iteration fuses one fix into a fresh copy of the same filter,
+        // made just before (warm in cache, as a running filter's state is);
+        // a batch of copies would time cache misses on cold copies instead.
         let fix = gps::<T>(1_000_000);
         b.iter_batched_ref(
             || base.clone(),
             |nav| nav.push_gps(black_box(&fix)).unwrap(),
-            BatchSize::SmallInput,
+            BatchSize::PerIteration,
         )
     });
 }

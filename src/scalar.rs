@@ -18,6 +18,13 @@ pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
     fn as_f64(self) -> f64;
     /// Machine epsilon of the precision.
     const EPS: Self;
+    /// Largest rotation angle (radians) for which
+    /// [`quaternion_from_rotation_vector`](crate::geo::quaternion_from_rotation_vector)
+    /// uses its series instead of `sin`/`cos`: where the first neglected
+    /// term stays below half an ulp of 1 (1 rad in f32, 0.2 rad in f64).
+    const SMALL_ROTATION_MAX_RAD: f64;
+    /// Integer microseconds as seconds, rounded to nearest (see [`us_to_s`]).
+    fn seconds_from_us(us: u64) -> Self;
 }
 
 impl Scalar for f32 {
@@ -30,6 +37,19 @@ impl Scalar for f32 {
         self as f64
     }
     const EPS: Self = f32::EPSILON;
+    const SMALL_ROTATION_MAX_RAD: f64 = 1.0;
+    #[inline]
+    fn seconds_from_us(us: u64) -> Self {
+        // Below 2^24 µs (16.7 s: every step length) the integer is exact in
+        // f32 and the division by the exact 1e6 rounds once, all in
+        // hardware f32; the f64 route costs a software double on an FPU
+        // without f64.
+        if us < 1 << 24 {
+            us as u32 as f32 / 1e6
+        } else {
+            (us as f64 * 1e-6) as f32
+        }
+    }
 }
 
 impl Scalar for f64 {
@@ -42,13 +62,18 @@ impl Scalar for f64 {
         self
     }
     const EPS: Self = f64::EPSILON;
+    const SMALL_ROTATION_MAX_RAD: f64 = 0.2;
+    #[inline]
+    fn seconds_from_us(us: u64) -> Self {
+        us as f64 * 1e-6
+    }
 }
 
 /// Microseconds to seconds, in `T`. Timestamps stay integer microseconds
 /// (`u64`) everywhere; only *differences* of timestamps become floats.
 #[inline]
 pub fn us_to_s<T: Scalar>(us: u64) -> T {
-    T::lit(us as f64 * 1e-6)
+    T::seconds_from_us(us)
 }
 
 /// Seconds to integer microseconds, rounded to nearest; negative and
@@ -72,4 +97,14 @@ where
     S: nalgebra::RawStorage<T, R, C>,
 {
     m.iter().all(|v| v.is_finite())
+}
+
+/// [`all_finite`] for a fixed-size matrix: a branch-free scan of its
+/// contiguous storage (the generic iterator costs several times more on
+/// a 16x16 covariance checked after every step).
+#[inline]
+pub fn all_finite_fixed<T: Scalar, const R: usize, const C: usize>(
+    m: &nalgebra::SMatrix<T, R, C>,
+) -> bool {
+    m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite())
 }

@@ -65,7 +65,7 @@ use crate::geo::{
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
 };
 use crate::kalman;
-use crate::scalar::{Scalar, all_finite, us_to_s};
+use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s};
 use crate::sensors::{
     GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
     checked_mag,
@@ -120,11 +120,23 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
 ) {
     let q = x.fixed_rows::<4>(QUAT).into_owned();
     let proj = nalgebra::Matrix4::identity() - q * q.transpose();
+    // Rows q of T P; the quaternion block is (T P)[q, q] T^T. Columns
+    // outside q are mirrored from the rows, and the 4x4 block from its
+    // lower triangle, so P stays exactly symmetric.
     let rows = proj * p.fixed_rows::<4>(QUAT);
-    p.fixed_rows_mut::<4>(QUAT).copy_from(&rows);
-    let cols = p.fixed_columns::<4>(QUAT) * proj;
-    p.fixed_columns_mut::<4>(QUAT).copy_from(&cols);
-    kalman::symmetrize(p);
+    let qq = rows.fixed_columns::<4>(QUAT) * proj;
+    for j in 0..N {
+        for r in 0..4 {
+            let v = if (QUAT..QUAT + 4).contains(&j) {
+                let c = j - QUAT;
+                qq[(r.max(c), r.min(c))]
+            } else {
+                rows[(r, j)]
+            };
+            p[(QUAT + r, j)] = v;
+            p[(j, QUAT + r)] = v;
+        }
+    }
 }
 
 /// A checked GPS fix in the filter's NED frame, ready for a GPS model.
@@ -430,30 +442,6 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         out
     }
 
-    fn widen_square(m: &SMatrix<T, NAV_STATES, NAV_STATES>) -> SMatrix<T, N, N> {
-        let mut out = SMatrix::<T, N, N>::zeros();
-        out.fixed_view_mut::<NAV_STATES, NAV_STATES>(0, 0)
-            .copy_from(m);
-        out
-    }
-
-    /// `F` (padded) and `Q` over `dt` at the current state with the given held inputs.
-    fn jacobian_and_noise(
-        &self,
-        gyro: &Vector3<T>,
-        accel: &Vector3<T>,
-        dt: T,
-    ) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
-        let x16 = self.nav_state();
-        let f = Self::widen_square(&process::jacobian(&x16, gyro, accel));
-        let mut intensity = Self::widen_square(&process::noise_intensity(&x16, &self.config));
-        for i in NAV_STATES..N {
-            intensity[(i, i)] = self.extra_intensity[i];
-        }
-        let q = process::discretize_noise(&f, &intensity, dt);
-        (f, q)
-    }
-
     fn accumulate_accel(&mut self, accel: &Vector3<T>) {
         self.accel_mean.push(accel, self.config.align_window);
     }
@@ -499,10 +487,17 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         if dt_us > self.config.max_imu_step_us {
             if self.initialized {
-                let (_, q) = self.jacobian_and_noise(&gyro, &accel, us_to_s(dt_us));
-                let mut p = self.p + q;
-                kalman::symmetrize(&mut p);
-                if all_finite(&p) {
+                let mut p = self.p;
+                process::add_process_noise(
+                    &mut p,
+                    &self.nav_state(),
+                    &gyro,
+                    &accel,
+                    us_to_s(dt_us),
+                    &self.config,
+                    &self.extra_intensity,
+                );
+                if all_finite_fixed(&p) {
                     self.p = p;
                 }
             } else {
@@ -530,13 +525,19 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             dt,
             self.config.gravity_m_s2,
         );
-        let (f, q) = self.jacobian_and_noise(&gyro, &accel, dt);
-        let a = process::transition(&f, dt);
-        let mut p = a * self.p * a.transpose() + q;
+        let mut p = process::predict_covariance(
+            &self.p,
+            &self.nav_state(),
+            &gyro,
+            &accel,
+            dt,
+            &self.config,
+            &self.extra_intensity,
+        );
         let mut x = self.x;
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
         project_quaternion_covariance(&mut p, &x);
-        if !(all_finite(&x) && all_finite(&p)) {
+        if !(all_finite_fixed(&x) && all_finite_fixed(&p)) {
             bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu",
@@ -641,7 +642,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = sq(c.initial_accel_bias_std_m_s2);
             p[(GYRO_BIAS + i, GYRO_BIAS + i)] = sq(c.initial_gyro_bias_std_rad_s);
         }
-        if !(all_finite(&x) && all_finite(&p)) {
+        if !(all_finite_fixed(&x) && all_finite_fixed(&p)) {
             return Err(Error::NonFinite {
                 field: "initial state",
             });

@@ -69,9 +69,9 @@ use super::state::{
     ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateCovariance, StateVector, VEL, quaternion_of,
 };
 use crate::ekf16::config::Ekf16Config;
-use crate::geo::{quaternion_from_rotation_vector, rotation_matrix};
+use crate::geo::{normalize_near_unit, quaternion_from_rotation_vector, rotation_matrix};
 use crate::scalar::Scalar;
-use nalgebra::{Matrix3, Matrix4, Quaternion, SMatrix, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Matrix4, Quaternion, SMatrix, SVector, Vector3};
 
 /// The 4x3 matrix `Ξ(q)` of eq. (2): `q ⊗ [0, u] = Ξ(q) u`.
 pub fn xi<T: Scalar>(q: &Quaternion<T>) -> SMatrix<T, 4, 3> {
@@ -161,14 +161,12 @@ pub fn propagate<T: Scalar>(
     dt: T,
     gravity: T,
 ) -> StateVector<T> {
-    let q = UnitQuaternion::new_normalize(quaternion_of(x));
+    let q = normalize_near_unit(quaternion_of(x));
     let w = gyro - x.fixed_rows::<3>(GYRO_BIAS);
     let f = accel - x.fixed_rows::<3>(ACCEL_BIAS);
     let q_mid = q * quaternion_from_rotation_vector(&(w * (dt * T::lit(0.5))));
     let a = q_mid * f + Vector3::new(T::zero(), T::zero(), gravity);
-    let q_next = UnitQuaternion::new_normalize(
-        (q * quaternion_from_rotation_vector(&(w * dt))).into_inner(),
-    );
+    let q_next = normalize_near_unit((q * quaternion_from_rotation_vector(&(w * dt))).into_inner());
     let v = x.fixed_rows::<3>(VEL).into_owned();
     let mut out = *x;
     let qn = q_next.quaternion();
@@ -226,4 +224,238 @@ pub fn discretize_noise<T: Scalar, const N: usize>(
         + fq * f.transpose() * (dt2 * dt / T::lit(3.0));
     crate::kalman::symmetrize(&mut q);
     q
+}
+
+/// The Jacobian's non-zero blocks at one state and input (see the module
+/// docs): everything the structured prediction needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct JacobianBlocks<T: Scalar> {
+    /// `∂q'/∂q = 1/2 Ω(w - b_w)`.
+    qq: Matrix4<T>,
+    /// `∂q'/∂b_w = -1/2 Ξ(q)`.
+    q_bw: SMatrix<T, 4, 3>,
+    /// `∂v'/∂q = ∂(R(q) u)/∂q`, `u = f - b_f`.
+    v_q: SMatrix<T, 3, 4>,
+    /// `R(q)` (`∂v'/∂b_f = -R(q)`).
+    rot: Matrix3<T>,
+}
+
+impl<T: Scalar> JacobianBlocks<T> {
+    fn new(x: &StateVector<T>, gyro: &Vector3<T>, accel: &Vector3<T>) -> Self {
+        let half = T::lit(0.5);
+        let q = quaternion_of(x);
+        let w = gyro - x.fixed_rows::<3>(GYRO_BIAS);
+        let f = accel - x.fixed_rows::<3>(ACCEL_BIAS);
+        Self {
+            qq: omega(&w) * half,
+            q_bw: xi(&q) * (-half),
+            v_q: rotation_jacobian(&q, &f),
+            rot: rotation_matrix(&q),
+        }
+    }
+}
+
+/// Writes `block` (`R x C`, at rows `i0..`, columns `j0..`) into the
+/// symmetric `p` together with its mirror image `p[J, I] = p[I, J]^T`,
+/// adding to what is there (`accumulate`) or replacing it. A diagonal block
+/// (`i0 == j0`, `R == C`) contributes its lower triangle only, mirrored, so
+/// `p` stays exactly symmetric whatever rounding `block` carries.
+fn put_symmetric_block<T: Scalar, const N: usize, const R: usize, const C: usize>(
+    p: &mut SMatrix<T, N, N>,
+    i0: usize,
+    j0: usize,
+    block: &SMatrix<T, R, C>,
+    accumulate: bool,
+) {
+    for c in 0..C {
+        for r in 0..R {
+            let (i, j) = (i0 + r, j0 + c);
+            if i0 == j0 && j > i {
+                continue;
+            }
+            let v = if accumulate {
+                p[(i, j)] + block[(r, c)]
+            } else {
+                block[(r, c)]
+            };
+            p[(i, j)] = v;
+            p[(j, i)] = v;
+        }
+    }
+}
+
+/// Adds the process noise `Q` of a step of `dt` seconds to the symmetric
+/// `N x N` covariance `p`, block by block: the same matrix as
+/// [`discretize_noise`] of [`jacobian`] and [`noise_intensity`] (padded with
+/// zeros beyond the 16 navigation states), plus `extra_intensity[i] dt` on
+/// the diagonal of each state `i >= 16` (entries below 16 are ignored).
+/// See `docs/math.md` ("Structured covariance prediction") for the blocks.
+/// `p` stays exactly symmetric.
+pub fn add_process_noise<T: Scalar, const N: usize>(
+    p: &mut SMatrix<T, N, N>,
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+    dt: T,
+    config: &Ekf16Config<T>,
+    extra_intensity: &SVector<T, N>,
+) {
+    let jac = JacobianBlocks::new(x, gyro, accel);
+    add_noise_blocks(p, &jac, x, dt, config, extra_intensity);
+}
+
+fn add_noise_blocks<T: Scalar, const N: usize>(
+    p: &mut SMatrix<T, N, N>,
+    jac: &JacobianBlocks<T>,
+    x: &StateVector<T>,
+    dt: T,
+    config: &Ekf16Config<T>,
+    extra_intensity: &SVector<T, N>,
+) {
+    let q = quaternion_of(x);
+    let sw2 = config.gyro_noise_density * config.gyro_noise_density;
+    let sf2 = config.accel_noise_density * config.accel_noise_density;
+    let bf2 = config.accel_bias_random_walk * config.accel_bias_random_walk;
+    let bw2 = config.gyro_bias_random_walk * config.gyro_bias_random_walk;
+    let (d1, d2, d3) = (dt, dt * dt * T::lit(0.5), dt * dt * dt / T::lit(3.0));
+    // Continuous intensities: W_q = 1/4 Ξ Ξ^T σ_w², W_v = R R^T σ_f².
+    let g_q = xi(&q) * T::lit(0.5);
+    let w_q = g_q * g_q.transpose() * sw2;
+    let w_v = jac.rot * jac.rot.transpose() * sf2;
+    let fqq_wq = jac.qq * w_q;
+    let q_qq = w_q * d1
+        + (fqq_wq + fqq_wq.transpose()) * d2
+        + (fqq_wq * jac.qq.transpose() + jac.q_bw * jac.q_bw.transpose() * bw2) * d3;
+    put_symmetric_block(p, QUAT, QUAT, &q_qq, true);
+    let wq_jt = w_q * jac.v_q.transpose();
+    put_symmetric_block(p, QUAT, VEL, &(wq_jt * d2 + jac.qq * wq_jt * d3), true);
+    put_symmetric_block(p, QUAT, GYRO_BIAS, &(jac.q_bw * (bw2 * d2)), true);
+    put_symmetric_block(p, POS, POS, &(w_v * d3), true);
+    put_symmetric_block(p, POS, VEL, &(w_v * d2), true);
+    let q_vv =
+        w_v * d1 + (jac.v_q * w_q * jac.v_q.transpose() + jac.rot * jac.rot.transpose() * bf2) * d3;
+    put_symmetric_block(p, VEL, VEL, &q_vv, true);
+    put_symmetric_block(p, VEL, ACCEL_BIAS, &(jac.rot * (-bf2 * d2)), true);
+    for i in 0..3 {
+        p[(ACCEL_BIAS + i, ACCEL_BIAS + i)] += bf2 * d1;
+        p[(GYRO_BIAS + i, GYRO_BIAS + i)] += bw2 * d1;
+    }
+    for i in NAV_STATES..N {
+        p[(i, i)] += extra_intensity[i] * d1;
+    }
+}
+
+/// The blocks of `A = I + F dt + (F dt)²/2` besides the identity; every
+/// other block of `F²` is zero (see `docs/math.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TransitionBlocks<T: Scalar> {
+    dt: T,
+    qq: Matrix4<T>,
+    q_bw: SMatrix<T, 4, 3>,
+    r_q: SMatrix<T, 3, 4>,
+    r_bf: Matrix3<T>,
+    v_q: SMatrix<T, 3, 4>,
+    v_bf: Matrix3<T>,
+    v_bw: Matrix3<T>,
+}
+
+impl<T: Scalar> TransitionBlocks<T> {
+    fn new(jac: &JacobianBlocks<T>, dt: T) -> Self {
+        let dt2 = dt * dt * T::lit(0.5);
+        Self {
+            dt,
+            qq: Matrix4::identity() + jac.qq * dt + jac.qq * jac.qq * dt2,
+            q_bw: jac.q_bw * dt + jac.qq * jac.q_bw * dt2,
+            r_q: jac.v_q * dt2,
+            r_bf: jac.rot * (-dt2),
+            v_q: jac.v_q * dt + jac.v_q * jac.qq * dt2,
+            v_bf: jac.rot * (-dt),
+            v_bw: jac.v_q * jac.q_bw * dt2,
+        }
+    }
+
+    /// `(M A^T)[:, q]` for a block row `m` of `M = A P`.
+    fn col_q<const R: usize, const N: usize>(&self, m: &SMatrix<T, R, N>) -> SMatrix<T, R, 4> {
+        m.fixed_columns::<4>(QUAT) * self.qq.transpose()
+            + m.fixed_columns::<3>(GYRO_BIAS) * self.q_bw.transpose()
+    }
+
+    /// `(M A^T)[:, r]`.
+    fn col_r<const R: usize, const N: usize>(&self, m: &SMatrix<T, R, N>) -> SMatrix<T, R, 3> {
+        m.fixed_columns::<3>(POS)
+            + m.fixed_columns::<3>(VEL) * self.dt
+            + m.fixed_columns::<4>(QUAT) * self.r_q.transpose()
+            + m.fixed_columns::<3>(ACCEL_BIAS) * self.r_bf.transpose()
+    }
+
+    /// `(M A^T)[:, v]`.
+    fn col_v<const R: usize, const N: usize>(&self, m: &SMatrix<T, R, N>) -> SMatrix<T, R, 3> {
+        m.fixed_columns::<3>(VEL)
+            + m.fixed_columns::<4>(QUAT) * self.v_q.transpose()
+            + m.fixed_columns::<3>(ACCEL_BIAS) * self.v_bf.transpose()
+            + m.fixed_columns::<3>(GYRO_BIAS) * self.v_bw.transpose()
+    }
+}
+
+/// Writes the block row `m` (`R x N`, rows `i0..i0 + R`) of `A P` against
+/// the states `A` leaves alone (`b_f`, `b_w`, extras: columns `10..N`) into
+/// `out`, mirrored.
+fn set_against_unchanged<T: Scalar, const N: usize, const R: usize>(
+    out: &mut SMatrix<T, N, N>,
+    i0: usize,
+    m: &SMatrix<T, R, N>,
+) {
+    for j in ACCEL_BIAS..N {
+        for r in 0..R {
+            out[(i0 + r, j)] = m[(r, j)];
+            out[(j, i0 + r)] = m[(r, j)];
+        }
+    }
+}
+
+/// The covariance prediction `A P A^T + Q` of one step, computed from the
+/// blocks of the Jacobian instead of dense `N x N` products; equal (up to
+/// rounding) to `transition(F) P transition(F)^T + discretize_noise(F, Q', dt)`
+/// with `F` = [`jacobian`] and `Q'` = [`noise_intensity`] padded with zeros
+/// for the states beyond the 16 navigation ones, whose intensities are
+/// `extra_intensity[16..]` (random walks; entries below 16 are ignored).
+///
+/// `p` must be symmetric; the result is exactly symmetric (one triangle is
+/// computed, then mirrored). The blocks and the operation count:
+/// `docs/math.md`, "Structured covariance prediction".
+pub fn predict_covariance<T: Scalar, const N: usize>(
+    p: &SMatrix<T, N, N>,
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+    dt: T,
+    config: &Ekf16Config<T>,
+    extra_intensity: &SVector<T, N>,
+) -> SMatrix<T, N, N> {
+    const { assert!(N >= NAV_STATES) };
+    let jac = JacobianBlocks::new(x, gyro, accel);
+    let a = TransitionBlocks::new(&jac, dt);
+    // M = A P on the ten rows A changes (q, r, v); the other rows of A P are P's.
+    let p_q = p.fixed_rows::<4>(QUAT);
+    let p_v = p.fixed_rows::<3>(VEL);
+    let p_bf = p.fixed_rows::<3>(ACCEL_BIAS);
+    let p_bw = p.fixed_rows::<3>(GYRO_BIAS);
+    let m_q: SMatrix<T, 4, N> = a.qq * p_q + a.q_bw * p_bw;
+    let m_r: SMatrix<T, 3, N> = p.fixed_rows::<3>(POS) + p_v * dt + a.r_q * p_q + a.r_bf * p_bf;
+    let m_v: SMatrix<T, 3, N> = p_v + a.v_q * p_q + a.v_bf * p_bf + a.v_bw * p_bw;
+    // A P A^T: the unchanged states among themselves keep P; against the
+    // changed ones it is M; among the changed ones M A^T, lower block
+    // triangle computed and mirrored.
+    let mut out = *p;
+    set_against_unchanged(&mut out, QUAT, &m_q);
+    set_against_unchanged(&mut out, POS, &m_r);
+    set_against_unchanged(&mut out, VEL, &m_v);
+    put_symmetric_block(&mut out, QUAT, QUAT, &a.col_q(&m_q), false);
+    put_symmetric_block(&mut out, POS, QUAT, &a.col_q(&m_r), false);
+    put_symmetric_block(&mut out, POS, POS, &a.col_r(&m_r), false);
+    put_symmetric_block(&mut out, VEL, QUAT, &a.col_q(&m_v), false);
+    put_symmetric_block(&mut out, VEL, POS, &a.col_r(&m_v), false);
+    put_symmetric_block(&mut out, VEL, VEL, &a.col_v(&m_v), false);
+    add_noise_blocks(&mut out, &jac, x, dt, config, extra_intensity);
+    out
 }
