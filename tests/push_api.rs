@@ -7,8 +7,9 @@
 //! reported accuracies), magnetometer, `estimate`, `reset` (the navigator
 //! only) and more calm flight. Values mix plausible ones with hostile ones
 //! (NaN, ±inf, 1e30, `f32::MAX`, zero, negative and tiny accuracies); times
-//! step on from a cursor (small steps, gaps, hours ahead), repeat, go back
-//! (small and hours) or jump to 0, `u64::MAX` or anywhere.
+//! step on from a cursor (small steps, gaps, a minute; hours in the full
+//! machines), repeat, go back (small and hours) or jump to 0 (`u64::MAX` or
+//! anywhere in the full machines).
 //!
 //! After every call:
 //! - nothing panicked (proptest reports a panic as a failure);
