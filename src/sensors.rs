@@ -221,8 +221,25 @@ pub const MAX_POSITION_ACCURACY_M: f64 = 1.0e4;
 /// [`MAX_POSITION_ACCURACY_M`]).
 pub const MAX_SPEED_ACCURACY_M_S: f64 = 1.0e3;
 
-/// Copy any [`GpsFix`] into a [`Gps`], refusing non-finite values and
-/// reported accuracies that are not finite, not positive, or above
+/// Smallest reported accuracy (1 sigma, position in m or speed in m/s) a fix
+/// may carry. No receiver resolves better than a millimetre; a smaller value
+/// is a driver's placeholder, and as a measurement variance (`< 1e-6`) it
+/// would let one fix collapse the covariance below what `f32` resolves
+/// (negative variances after the update). Below it the fix is refused.
+pub const MIN_ACCURACY: f64 = 1.0e-3;
+
+/// Largest magnitude of a NED position component a fix may carry, metres:
+/// 10,000 km from the origin is beyond any local frame's validity.
+pub const MAX_NED_POSITION_M: f64 = 1.0e7;
+
+/// Largest magnitude of a velocity component a fix may carry, m/s (twenty
+/// times the 515 m/s at which receivers stop reporting).
+pub const MAX_GPS_VELOCITY_M_S: f64 = 1.0e4;
+
+/// Copy any [`GpsFix`] into a [`Gps`], refusing non-finite values, NED
+/// positions and velocities beyond [`MAX_NED_POSITION_M`] /
+/// [`MAX_GPS_VELOCITY_M_S`], and reported accuracies that are not finite,
+/// below [`MIN_ACCURACY`], or above
 /// [`MAX_POSITION_ACCURACY_M`] / [`MAX_SPEED_ACCURACY_M_S`]: every accuracy
 /// is checked here, before it can touch a covariance (the estimators count
 /// the refusal as an invalid fix).
@@ -246,11 +263,23 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
                 field: "gps.position",
             });
         }
+        GpsPosition::Ned(p) if p.amax() > T::lit(MAX_NED_POSITION_M) => {
+            return Err(Error::OutOfRange {
+                field: "gps.position",
+                reason: "NED position beyond sensors::MAX_NED_POSITION_M",
+            });
+        }
         _ => {}
     }
     if !all_finite(&s.velocity_ned_m_s) {
         return Err(Error::NonFinite {
             field: "gps.velocity",
+        });
+    }
+    if s.velocity_ned_m_s.amax() > T::lit(MAX_GPS_VELOCITY_M_S) {
+        return Err(Error::OutOfRange {
+            field: "gps.velocity",
+            reason: "velocity beyond sensors::MAX_GPS_VELOCITY_M_S",
         });
     }
     for (acc, field, max) in [
@@ -274,10 +303,10 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
             if !a.is_finite() {
                 return Err(Error::NonFinite { field });
             }
-            if a <= T::zero() {
+            if a < T::lit(MIN_ACCURACY) {
                 return Err(Error::OutOfRange {
                     field,
-                    reason: "accuracy must be positive",
+                    reason: "accuracy below sensors::MIN_ACCURACY (or not positive)",
                 });
             }
             if a > T::lit(max) {

@@ -25,15 +25,15 @@
 //! A failing case is shrunk by proptest, then by dropping operations one at
 //! a time ([`minimize`]), and printed as `start` and `ops`.
 //!
-//! Four known bugs, each kept as an ignored test with its minimal input, are
-//! left out of the default machines:
+//! Two known bugs, each kept as an ignored test with its minimal input, are
+//! left out of the default machines (two more, tiny reported accuracies
+//! [`tiny_speed_accuracy`] and NED fixes at the largest floats
+//! [`nav_huge_ned_fix`], are fixed: their inputs are in every machine and
+//! their minimal cases run as regression tests):
 //! - long IMU gaps ([`long_imu_gap`]): no jump ahead beyond 1 min, no
 //!   `u64::MAX` or random absolute stamps after the clock started
 //!   (`u64::MAX` stamps are in [`u64_max_stamps_then_back`] and
 //!   [`nav_estimated_imu_near_u64_max`]);
-//! - tiny reported accuracies ([`tiny_speed_accuracy`]): no 1e-20 or 1e-6;
-//! - NED fixes at the largest floats ([`nav_huge_ned_fix`]): no `f32::MAX`
-//!   or `f64::MAX` in GPS positions (1e30 stays);
 //! - the navigator's EKF counters going back to zero
 //!   ([`nav_keeps_ekf_refusals`]): tolerated by re-counting from the rebuilt
 //!   EKF.
@@ -159,10 +159,10 @@ fn vec3(center: [f64; 3], spread: f64, max: bool) -> impl Strategy<Value = [f64;
     (axis(center[0]), axis(center[1]), axis(center[2])).prop_map(|(x, y, z)| [x, y, z])
 }
 
-/// A reported accuracy: absent, plausible, or not; `tiny` adds 1e-20 and
-/// 1e-6, which the known bug of [`tiny_speed_accuracy`] trips.
-fn accuracy(tiny: bool) -> impl Strategy<Value = Option<f64>> {
-    let mut bad = vec![
+/// A reported accuracy: absent, plausible, or not (tiny ones included: the
+/// bug of [`tiny_speed_accuracy`] is fixed).
+fn accuracy() -> impl Strategy<Value = Option<f64>> {
+    let bad = vec![
         0.0,
         -1.0,
         f64::NAN,
@@ -171,10 +171,9 @@ fn accuracy(tiny: bool) -> impl Strategy<Value = Option<f64>> {
         1e30,
         f32::MAX as f64,
         1e4,
+        1e-20,
+        1e-6,
     ];
-    if tiny {
-        bad.extend([1e-20, 1e-6]);
-    }
     prop_oneof![
         6 => Just(None),
         4 => (0.05f64..10.0).prop_map(Some),
@@ -182,11 +181,11 @@ fn accuracy(tiny: bool) -> impl Strategy<Value = Option<f64>> {
     ]
 }
 
-/// A fix's position; `full` adds the largest floats to NED positions, which
-/// the known bug of [`nav_huge_ned_fix`] trips.
-fn position(full: bool) -> impl Strategy<Value = Position> {
+/// A fix's position, the largest floats included in NED (the bug of
+/// [`nav_huge_ned_fix`] is fixed).
+fn position() -> impl Strategy<Value = Position> {
     prop_oneof![
-        3 => vec3([0.0, 0.0, 0.0], 100.0, full).prop_map(Position::Ned),
+        3 => vec3([0.0, 0.0, 0.0], 100.0, true).prop_map(Position::Ned),
         1 => (
             prop_oneof![9 => 46.999f64..47.001, 1 => prop_oneof![Just(91.0), Just(-90.0), Just(f64::NAN), Just(1e30)]],
             prop_oneof![9 => 7.999f64..8.001, 1 => prop_oneof![Just(361.0), Just(-180.0), Just(f64::INFINITY)]],
@@ -205,9 +204,9 @@ fn op(full: bool) -> impl Strategy<Value = Op> {
         .prop_map(|(t, gyro, accel)| Op::Imu { t, gyro, accel });
     let gps = (
         time(full),
-        position(full),
+        position(),
         vec3([0.0; 3], 5.0, true),
-        [accuracy(full), accuracy(full), accuracy(full)],
+        [accuracy(), accuracy(), accuracy()],
     )
         .prop_map(|(t, position, velocity, accuracy)| Op::Gps {
             t,
@@ -701,25 +700,25 @@ macro_rules! machines {
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy, nav_huge_ned_fix, nav_keeps_ekf_refusals"]
+            #[ignore = "reason: known bugs long_imu_gap, nav_keeps_ekf_refusals"]
             fn full_machine_nav_estimated() {
                 machine(nav_estimated, true);
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy, nav_huge_ned_fix, nav_keeps_ekf_refusals"]
+            #[ignore = "reason: known bugs long_imu_gap, nav_keeps_ekf_refusals"]
             fn full_machine_nav_fixed() {
                 machine(nav_fixed, true);
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy"]
+            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_ekf16() {
                 machine(ekf16, true);
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy"]
+            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_aekf17() {
                 machine(aekf17, true);
             }
@@ -990,7 +989,6 @@ fn nav_estimated_imu_near_u64_max() {
 /// Minimal case from the machine (2000 cases): 1.154 s calm, one IMU sample
 /// 10 min later, a fix with speed accuracy 1e-20, a magnetometer sample.
 #[test]
-#[ignore = "reason: no lower bound on reported accuracies (src/sensors.rs checked_gps): R = 1e-40 gives negative variances"]
 fn tiny_speed_accuracy() {
     let ops = [
         Op::Imu {
@@ -1032,7 +1030,6 @@ fn tiny_speed_accuracy() {
 /// machine: 0.114 s / 0.102 s of calm flight, the fix 6 ms / 18 ms later,
 /// 0.1 s of calm flight.
 #[test]
-#[ignore = "reason: NED positions unbounded in src/sensors.rs checked_gps: the nav's present position overflows to inf"]
 fn nav_huge_ned_fix() {
     let huge_fix = |t, p| Op::Gps {
         t,
