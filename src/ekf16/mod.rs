@@ -89,7 +89,8 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-use nav_core::{GpsBlock, NavCore};
+pub use nav_core::GpsBlock;
+use nav_core::NavCore;
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.
@@ -118,13 +119,49 @@ pub struct RefusalCounters {
     pub mag_invalid: u32,
     /// Magnetometer samples duplicated or going back in time.
     pub mag_time: u32,
-    /// Magnetometer updates rejected by the gate.
+    /// Magnetometer updates rejected by the heading-innovation gate (`mag_gate`).
     pub mag_rejected: u32,
+    /// Magnetometer samples refused as disturbed: field norm or inclination
+    /// too far from the learned field (`mag_norm_tolerance`,
+    /// `mag_inclination_tolerance_rad`).
+    pub mag_disturbed: u32,
+    /// GPS fixes whose position kind (geodetic or NED) differs from the
+    /// first accepted fix's.
+    pub gps_mixed_frames: u32,
     /// Fusions refused because the innovation covariance had no Cholesky factor.
     pub not_positive_definite: u32,
-    /// Position and velocity reset to a fix after `gps_reset_timeout_us`
-    /// of rejected fixes.
-    pub gps_resets: u32,
+    /// Position block reset to a fix (after `gps_reset_timeout_us` of
+    /// rejected position blocks, or a divergence).
+    pub gps_position_resets: u32,
+    /// Velocity block reset to a fix (after `gps_reset_timeout_us` of
+    /// rejected velocity blocks, or a divergence).
+    pub gps_velocity_resets: u32,
+    /// Of the two reset counts above, the resets caused by a divergence: the
+    /// block's mean NIS over `gps_nis_window` fixes above `gps_nis_bound`.
+    pub gps_divergence_resets: u32,
+}
+
+/// Why a GPS block was reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GpsResetCause {
+    /// Every fix's block was rejected for `gps_reset_timeout_us`.
+    Rejected,
+    /// The block's mean NIS over `gps_nis_window` fixes exceeded
+    /// `gps_nis_bound` (accepted fusions inconsistent with the covariance).
+    Diverged,
+}
+
+/// The last reset of a GPS block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct GpsReset {
+    /// Time of the fix the block was reset to, µs.
+    pub t_us: u64,
+    /// The block.
+    pub block: GpsBlock,
+    /// Why.
+    pub cause: GpsResetCause,
 }
 
 /// The 16-state EKF of the paper (section 2.1), GPS fused without delay handling.
