@@ -19,9 +19,10 @@
 //! - eqs. (7)-(8): the magnetometer model holds roll and pitch at the
 //!   estimate, and its Jacobian carries the tilt error the heading inherits
 //!   from them (`tan(I)` per radian; a yaw-only Jacobian diverges with a fast
-//!   magnetometer); by default the update corrects tilt too, with
-//!   `mag_corrects_tilt = false` yaw only, as the text intends (see
-//!   [`measurement`]);
+//!   magnetometer); once the tilt is known (`mag_tilt_alignment_std_rad`)
+//!   the update corrects heading only, as the text intends: its correction
+//!   is a rotation about the NED vertical and it leaves the accelerometer
+//!   biases alone ([`measurement::heading_only_restriction`]);
 //! - eq. (9): `K = P H^T (H P H^T + R)^-1` (printed `H^T P H^T`);
 //! - additions: Joseph-form update, chi-square gating, the GPS lever arm,
 //!   and the quaternion's covariance kept in the tangent space of the unit
@@ -36,14 +37,19 @@
 //!   `P = A P A^T + Q`.
 //! - **GPS fix** ([`Navigator::push_gps`]): position then velocity, two
 //!   3-D blocks, each gated on its NIS and recorded; the velocity block is
-//!   linearized after the position update (sequential fusion). When every
-//!   fix has had both blocks rejected for `gps_reset_timeout_us` (default
-//!   5 s), position and velocity are reset to the fix: each shifted by its
-//!   innovation, its rows and columns of `P` cleared and its variances set to
-//!   the fix's `R` (ArduPilot and PX4 recover the same way); otherwise a
-//!   filter that has drifted past both gates never accepts a fix again.
-//! - **Magnetometer sample** ([`Navigator::push_mag`]): the heading-only
-//!   pseudo-measurement, gated and recorded.
+//!   linearized after the position update (sequential fusion). Each block
+//!   is reset to the fix on its own (shifted by its innovation, its rows and
+//!   columns of `P` cleared, its variances set to the fix's `R`; ArduPilot
+//!   and PX4 recover the same way) when it has been rejected in every fix
+//!   for `gps_reset_timeout_us` (default 5 s, one timer per block), or when
+//!   the mean NIS of its last `gps_nis_window` accepted fusions exceeds
+//!   `gps_nis_bound` (divergence). Counted per block and recorded
+//!   ([`Ekf16::last_gps_reset`]). Geodetic and NED fixes cannot be mixed.
+//! - **Magnetometer sample** ([`Navigator::push_mag`]): refused as disturbed
+//!   when its field norm or inclination is too far from the learned field,
+//!   gated on its heading innovation (1 DOF), then the heading
+//!   pseudo-measurement is fused and recorded (see `docs/math.md`,
+//!   "Magnetometer gating").
 //!
 //! # Initialization
 //! Before the first GPS fix the filter only listens: it averages the

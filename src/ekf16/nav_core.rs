@@ -30,16 +30,23 @@
 //!   [`GpsMeasurement`] for the filter's own GPS model.
 //!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
 //!   fuse position then velocity with [`NavCore::fuse`], store the records
-//!   with [`NavCore::record_gps`]. When both blocks of every fix have been
-//!   rejected for `gps_reset_timeout_us`, it resets position and velocity to
-//!   the fix (`NavCore::reset_to_gps`, counted in
-//!   [`RefusalCounters::gps_resets`]).
+//!   with [`NavCore::record_gps`]. Each block then goes through
+//!   `NavCore::gps_block_verdict` (its own rejection timer,
+//!   `gps_reset_timeout_us`, and its NIS window, `gps_nis_window` /
+//!   `gps_nis_bound`) and, when it must, `NavCore::reset_gps_block` resets
+//!   that block alone to the fix (counted per block in [`RefusalCounters`],
+//!   recorded as the last [`GpsReset`]). Geodetic and NED fixes cannot be
+//!   mixed ([`check_position_kind`], shared with the navigator).
 //! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
 //!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
-//! - [`NavCore::push_mag`]: the heading-only magnetometer update of
+//! - [`NavCore::push_mag`]: the magnetometer update of
 //!   [`measurement`](super::measurement) (or keeps the sample for
-//!   initialization).
+//!   initialization): refused as disturbed when the field norm or
+//!   inclination is off the learned field, gated on the heading innovation,
+//!   heading-only once the tilt standard deviation is below
+//!   `mag_tilt_alignment_std_rad` (the gain restricted by
+//!   [`measurement::heading_only_restriction`](super::measurement::heading_only_restriction)).
 //! - [`NavCore::reset_extra_state`] and [`NavCore::clamp_extra_state`]: the
 //!   two ways a filter may change an extra state from outside the Kalman
 //!   algebra. A reset sets the value and variance and drops the state's
@@ -231,6 +238,14 @@ macro_rules! core_accessors {
         /// Counters of refused and gated-out samples.
         pub fn refusals(&self) -> RefusalCounters {
             self.core.refusals()
+        }
+
+        /// Standard deviation of the tilt, rad: the larger of the north and
+        /// east components of the attitude error (NED), from the covariance.
+        /// Below `mag_tilt_alignment_std_rad` the magnetometer corrects
+        /// heading only.
+        pub fn tilt_std(&self) -> T {
+            self.core.tilt_std()
         }
 
         /// The last reset of a GPS block (which block, why, when).
