@@ -1051,16 +1051,21 @@ macro_rules! ekf16_tests {
                 assert!((position.innovation.z + lit(1.0)).abs() < lit(1e-3));
             }
 
-            #[test]
-            fn magnetometer_update_corrects_yaw_and_not_roll_or_pitch() {
-                let (roll, pitch, yaw) = (0.17, -0.26, 0.7);
-                let start = NavState {
+            /// At rest at the origin with this attitude (rad), biases 0.
+            fn at_rest(roll: f64, pitch: f64, yaw: f64) -> NavState<T> {
+                NavState {
                     attitude: quaternion_from_euler(lit(roll), lit(pitch), lit(yaw)),
                     position_ned_m: Vector3::zeros(),
                     velocity_ned_m_s: Vector3::zeros(),
                     accel_bias_m_s2: Vector3::zeros(),
                     gyro_bias_rad_s: Vector3::zeros(),
-                };
+                }
+            }
+
+            #[test]
+            fn magnetometer_update_corrects_yaw_and_not_roll_or_pitch() {
+                let (roll, pitch, yaw) = (0.17, -0.26, 0.7);
+                let start = at_rest(roll, pitch, yaw);
                 let mut p = SMatrix::<T, NAV_STATES, NAV_STATES>::identity() * lit(0.01);
                 p.fixed_view_mut::<4, 4>(QUAT, QUAT)
                     .copy_from(&state::attitude_covariance(
@@ -1114,13 +1119,7 @@ macro_rules! ekf16_tests {
                 // A dense covariance: tilt, yaw, velocity and both biases
                 // all correlated (P = A Aᵀ, A with every entry non-zero).
                 let (roll, pitch, yaw) = (0.3, -0.2, 1.1);
-                let start = NavState {
-                    attitude: quaternion_from_euler(lit(roll), lit(pitch), lit(yaw)),
-                    position_ned_m: Vector3::zeros(),
-                    velocity_ned_m_s: Vector3::zeros(),
-                    accel_bias_m_s2: Vector3::zeros(),
-                    gyro_bias_rad_s: Vector3::zeros(),
-                };
+                let start = at_rest(roll, pitch, yaw);
                 let a = SMatrix::<T, NAV_STATES, NAV_STATES>::from_fn(|i, j| {
                     let d = if i == j { 0.2 } else { 0.0 };
                     lit(d + 0.05 * ((3 * i + 7 * j) as f64).sin())
