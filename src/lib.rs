@@ -14,7 +14,7 @@
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
 //! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
 //! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
-//! | `replay` | no | streaming log readers (crate CSV, ArduPilot, PX4 `ulog2csv`) merged into one sensor stream; implies `std` |
+//! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` |
 //!
 //! ## On a microcontroller (`no_std`, `f32`)
 //!
@@ -72,7 +72,9 @@ pub mod sensors;
 pub mod sim;
 
 pub use aekf17::{Aekf17Config, AugmentedEkf17};
-pub use delay::{DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayUpdate, SensorDelays};
+pub use delay::{
+    DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayStatus, DelayUpdate, SensorDelays,
+};
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};

@@ -5,10 +5,13 @@
 
 use delaynav::geo::rotation_matrix;
 use delaynav::sim::{
-    DelayProfile, DelayStep, GpsPositionOutput, STANDARD_GRAVITY, Scenario, SensorConfig,
-    SimConfig, SimEvent, Simulation, Truth, VibrationHarmonic, csv, delay_bound_s, noise_floor,
+    BoundConfig, BoundMagnetometer, DelayProfile, DelayStep, GpsPositionOutput, STANDARD_GRAVITY,
+    Scenario, SensorConfig, SimConfig, SimEvent, Simulation, Truth, VibrationHarmonic, csv,
+    delay_bound_s, noise_floor, tilt_heading_error_rad, trajectory_bound,
 };
-use delaynav::{GpsPosition, Imu, Mag};
+use delaynav::{
+    DelayCompensatedNav, DelayMode, Ekf16Config, GpsPosition, Imu, Mag, NavConfig, Navigator,
+};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 fn run(config: SimConfig) -> Vec<SimEvent> {
@@ -321,6 +324,7 @@ fn delay_profile_drift_steps_and_jitter_reach_the_fixes() {
             change_s: 0.1,
         }],
         jitter_std_s: 0.01,
+        ..DelayProfile::default()
     };
     let config = SimConfig {
         delay: delay.clone(),
@@ -596,5 +600,181 @@ fn vibration_adds_its_harmonic_to_gyro_and_accelerometer() {
         let amplitude = |s: f64, c: f64| 2.0 * (s * s + c * c).sqrt() / n as f64;
         assert!((amplitude(s, c) / harmonic.gyro_amplitude_rad_s - 1.0).abs() < 1e-6);
         assert!((amplitude(sa, ca) / harmonic.accel_amplitude_m_s2 - 1.0).abs() < 1e-6);
+    }
+}
+
+/// Still at the origin, level, fixed heading (no path, no manoeuvre).
+fn hover(seed: u64, duration_s: f64, delay_s: f64) -> SimConfig {
+    let mut config = SimConfig {
+        delay: DelayProfile::constant(delay_s),
+        duration_s,
+        ..SimConfig::for_scenario(Scenario::Low, seed)
+    };
+    config.trajectory.path.clear();
+    config.trajectory.yaw_amplitude_rad = 0.0;
+    config.trajectory.accel_limit_m_s2 = 1e-6;
+    config
+}
+
+/// The bound's prior with the biases known exactly, the magnetometer as a
+/// heading only (the noise floor's model).
+fn known_biases(sensors: &SensorConfig) -> BoundConfig {
+    BoundConfig {
+        magnetometer: BoundMagnetometer::Heading,
+        accel_bias_std_m_s2: 0.0,
+        gyro_bias_std_rad_s: 0.0,
+        ..BoundConfig::for_sensors(sensors)
+    }
+}
+
+#[test]
+fn trajectory_bound_at_hover_with_known_biases_is_the_noise_floor() {
+    let config = hover(1, 120.0, 0.0);
+    let events = run(config.clone());
+    let bound = trajectory_bound(&events, &config, &known_biases(&config.sensors)).unwrap();
+    assert_eq!(bound.samples.len(), 120_001);
+    let rms = bound.rms_after(60_000_000).unwrap();
+    let floor = noise_floor(&config.sensors, STANDARD_GRAVITY);
+    let close = |name: &str, got: f64, want: f64| {
+        assert!(
+            (got / want - 1.0).abs() < 0.02,
+            "{name}: bound {got}, floor {want}"
+        );
+    };
+    close("tilt", rms.tilt_rad, floor.tilt_rad * 2f64.sqrt());
+    close("roll", rms.euler_rad.x, floor.tilt_rad);
+    close("pitch", rms.euler_rad.y, floor.tilt_rad);
+    close("velocity", rms.velocity_m_s, floor.velocity_norm_m_s);
+    close("position", rms.position_m, floor.position_norm_m);
+    close("heading", rms.heading_rad, floor.heading_mag_only_rad);
+    close("yaw", rms.euler_rad.z, floor.heading_mag_only_rad);
+}
+
+#[test]
+fn trajectory_bound_grows_with_the_delay_and_with_unknown_biases() {
+    let prior = |c: &SimConfig| known_biases(&c.sensors);
+    let rms = |delay_s: f64, prior: &dyn Fn(&SimConfig) -> BoundConfig| {
+        let config = hover(2, 60.0, delay_s);
+        let events = run(config.clone());
+        trajectory_bound(&events, &config, &prior(&config))
+            .unwrap()
+            .rms_after(30_000_000)
+            .unwrap()
+    };
+    let now = rms(0.0, &prior);
+    let late = rms(0.4, &prior);
+    // A fix 0.4 s old leaves 0.4 s of dead reckoning: velocity and position
+    // grow, tilt barely (it moves only with the gyro noise).
+    assert!(
+        late.velocity_m_s > now.velocity_m_s * 1.05,
+        "{late:?} {now:?}"
+    );
+    assert!(late.position_m > now.position_m, "{late:?} {now:?}");
+    assert!((late.tilt_rad / now.tilt_rad - 1.0).abs() < 0.05);
+    // At hover an accelerometer bias cannot be told from tilt: unknown
+    // biases raise the tilt bound far above the floor.
+    let unknown = rms(0.0, &|c| BoundConfig {
+        magnetometer: BoundMagnetometer::Heading,
+        ..BoundConfig::for_sensors(&c.sensors)
+    });
+    assert!(unknown.tilt_rad > 5.0 * now.tilt_rad, "{unknown:?} {now:?}");
+    assert!(
+        unknown.accel_bias_m_s2.x
+            > 0.1 * BoundConfig::for_sensors(&SensorConfig::default()).accel_bias_std_m_s2
+    );
+}
+
+/// Squared errors of the navigator given the true delay on one run, summed
+/// from `skip_us` on: tilt, velocity, position, and the count.
+fn oracle_squared_errors(config: &SimConfig, events: &[SimEvent], skip_us: u64) -> [f64; 4] {
+    let s = &config.sensors;
+    let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
+    let ekf = Ekf16Config {
+        mag_inclination_rad: s.inclination_rad,
+        mag_declination_rad: s.declination_rad,
+        mag_noise_variance: s.mag_noise_var,
+        gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
+        gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
+        gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
+        initial_accel_bias_std_m_s2: s.accel_bias_max_m_s2() / 3f64.sqrt(),
+        initial_gyro_bias_std_rad_s: s.gyro_bias_max_rad_s / 3f64.sqrt(),
+        ..Ekf16Config::with_per_sample_imu_variances(
+            s.gyro_noise_var_rad2_s2,
+            s.accel_noise_var_g2 * g2,
+            s.imu_rate_hz,
+        )
+    };
+    let mut nav = DelayCompensatedNav::<f64>::new(NavConfig {
+        ekf,
+        mode: DelayMode::Fixed {
+            delay_s: config.delay.initial_s,
+        },
+        imu_rate_hz: s.imu_rate_hz,
+        ..NavConfig::default()
+    })
+    .unwrap();
+    let mut sums = [0.0; 4];
+    for event in events {
+        match event {
+            SimEvent::Imu { sample, truth } => {
+                let _ = nav.push_imu(sample);
+                if truth.t_us >= skip_us {
+                    let est = nav.estimate().expect("initialized");
+                    sums[0] += tilt_heading_error_rad(&est.attitude, &truth.attitude)
+                        .0
+                        .powi(2);
+                    sums[1] += (est.velocity_ned_m_s - truth.velocity_m_s).norm_squared();
+                    sums[2] += (est.position_ned_m - truth.position_m).norm_squared();
+                    sums[3] += 1.0;
+                }
+            }
+            SimEvent::Mag(m) => {
+                let _ = nav.push_mag(m);
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = nav.push_gps(fix);
+            }
+        }
+    }
+    sums
+}
+
+#[test]
+fn trajectory_bound_is_below_the_navigator_given_the_true_delay() {
+    let skip_us = 10_000_000;
+    let (mut nav, mut bound) = ([0.0; 4], [0.0; 3]);
+    for seed in 1..=3 {
+        let config = SimConfig {
+            duration_s: 40.0,
+            ..SimConfig::for_scenario(Scenario::High, seed)
+        };
+        let events = run(config.clone());
+        let b = trajectory_bound(&events, &config, &BoundConfig::for_sensors(&config.sensors))
+            .unwrap()
+            .rms_after(skip_us)
+            .unwrap();
+        bound[0] += b.tilt_rad.powi(2);
+        bound[1] += b.velocity_m_s.powi(2);
+        bound[2] += b.position_m.powi(2);
+        for (sum, x) in nav
+            .iter_mut()
+            .zip(oracle_squared_errors(&config, &events, skip_us))
+        {
+            *sum += x;
+        }
+    }
+    // RMS over three runs; position errors decorrelate over seconds, so its
+    // RMSE scatters most and gets the widest margin.
+    for (i, (name, margin)) in [("tilt", 1.1), ("velocity", 1.1), ("position", 1.25)]
+        .into_iter()
+        .enumerate()
+    {
+        let est = (nav[i] / nav[3]).sqrt();
+        let b = (bound[i] / 3.0).sqrt();
+        eprintln!("{name}: bound {b}, navigator {est}");
+        assert!(
+            b < margin * est,
+            "{name}: bound {b} above the navigator's {est}"
+        );
     }
 }

@@ -4,6 +4,8 @@
 //! ```text
 //! cargo run --release --features replay --example replay -- \
 //!     ../shared/data/ardupilot-log171 --from 75 --to 225 --estimator all --json out.json
+//! cargo run --release --features replay --example replay -- \
+//!     ../shared/data/ardupilot-log171/log171.bin --from 75 --to 225 --json out.json
 //! ```
 //!
 //! Writes per-sample estimates (`--out`), a JSON summary per estimator
@@ -17,7 +19,7 @@ use clap::Parser;
 use delaynav::replay::{
     ArduPilotImu, EstimateWriter, LogFiles, LogFormat, LogReader, ReaderOptions,
     ReferenceAlignment, ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
-    inclination_at_rest, replay,
+    dataflash::DataFlashLog, flight_window, inclination_at_rest, replay,
 };
 use delaynav::{
     Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
@@ -36,9 +38,11 @@ type Failure = Box<dyn Error>;
 #[derive(Parser, Debug)]
 #[command(name = "replay")]
 struct Args {
-    /// Log directory or files. None: replay a simulated run (needs the `sim` feature).
+    /// Log: an ArduPilot `.bin` or PX4 `.ulg` file (recognised by its first
+    /// bytes), or a directory or files of CSVs. None: replay a simulated run
+    /// (needs the `sim` feature).
     inputs: Vec<PathBuf>,
-    /// Log layout: auto, csv (the crate's), ardupilot, px4.
+    /// Log layout: auto, csv (the crate's), ardupilot, px4, bin, ulg.
     #[arg(long, default_value = "auto")]
     format: String,
     /// Estimator to run: one of the registered names, or `all`.
@@ -47,12 +51,17 @@ struct Args {
     /// Seconds added to every GPS receive time (the added-delay experiment).
     #[arg(long, default_value_t = 0.0)]
     add_gps_delay: f64,
-    /// Start of the scored window, seconds on the log's clock.
+    /// Start of the scored window, seconds on the log's clock (default: the
+    /// take-off found in the log).
     #[arg(long)]
     from: Option<f64>,
-    /// End of the replayed and scored window, seconds.
+    /// End of the replayed and scored window, seconds (default: the landing
+    /// found in the log, cut 2 s before an impact).
     #[arg(long)]
     to: Option<f64>,
+    /// Set for the simulated run: its window is fixed, not found.
+    #[arg(skip)]
+    simulated: bool,
     /// Seconds replayed before `--from` so the estimators initialize and
     /// converge; not scored.
     #[arg(long, default_value_t = 30.0)]
@@ -79,9 +88,13 @@ struct Args {
     /// Mounting trim pitch, radians (default: ArduPilot `AHRS_TRIM_Y`, else 0).
     #[arg(long)]
     trim_pitch_rad: Option<f64>,
-    /// ArduPilot: read the second IMU (`imu2.csv`).
+    /// ArduPilot: read the second IMU (`imu2.csv`); the same as `--imu-instance 1`.
     #[arg(long)]
     imu2: bool,
+    /// Which IMU to read, 0 first: DataFlash `IMU` instance, ULog
+    /// `sensor_combined` multi-id, ArduPilot CSV `imu.csv` (0) or `imu2.csv` (1).
+    #[arg(long, default_value_t = 0)]
+    imu_instance: u8,
     /// Accelerometer noise density of the filters, m/s^2/sqrt(Hz) (default:
     /// ArduPilot logs log171's measured in-flight value, others the paper's
     /// Table 3; see `docs/replay.md`).
@@ -256,13 +269,14 @@ fn seconds_to_us(s: f64) -> u64 {
 }
 
 fn setup(args: &Args) -> Result<Setup, Failure> {
+    let imu_instance = if args.imu2 { 1 } else { args.imu_instance };
     let reader = ReaderOptions {
         gps_delay_added_us: seconds_to_us(args.add_gps_delay),
-        ardupilot_imu: if args.imu2 {
-            ArduPilotImu::Second
-        } else {
-            ArduPilotImu::First
+        ardupilot_imu: match imu_instance {
+            0 => ArduPilotImu::First,
+            _ => ArduPilotImu::Second,
         },
+        imu_instance,
         ..ReaderOptions::default()
     };
     let files = LogFiles::locate(
@@ -271,12 +285,24 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         &reader,
     )?;
 
+    if files.format == LogFormat::ArduPilot && imu_instance > 1 {
+        return Err(format!(
+            "IMU instance {imu_instance}: the ArduPilot CSV layout has imu.csv (0) and imu2.csv (1)"
+        )
+        .into());
+    }
+    let ardupilot_layout = matches!(files.format, LogFormat::ArduPilot | LogFormat::DataFlash);
     let mut alignment = ReferenceAlignment::default();
-    if let Some(params) = &files.params {
-        let mut skips = SkipCounts::default();
-        let values = ardupilot::read_params(params, &mut skips)?;
+    let params = match (&files.params, files.format) {
+        (Some(path), LogFormat::DataFlash) => Some(DataFlashLog::open(path)?.params()),
+        (Some(path), LogFormat::ArduPilot) => {
+            Some(ardupilot::read_params(path, &mut SkipCounts::default())?)
+        }
+        _ => None,
+    };
+    if let Some(values) = &params {
         alignment =
-            ardupilot::alignment_from_params(&values, ardupilot::LOG171_ALIGNMENT.declination_rad);
+            ardupilot::alignment_from_params(values, ardupilot::LOG171_ALIGNMENT.declination_rad);
     }
     if let Some(d) = args.declination_deg {
         alignment.declination_rad = d.to_radians();
@@ -293,7 +319,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
     let imu_rate_hz = imu_rate_hz(LogReader::open(&files, &reader)?, 10_000_000).unwrap_or(1000.0);
     // Per log: ArduPilot's 50 Hz logged IMU has log171's measured in-flight
     // noise (docs/replay.md); other layouts keep the paper's Table 3.
-    let defaults = if matches!(files.format, LogFormat::ArduPilot) {
+    let defaults = if ardupilot_layout {
         ardupilot::with_log171_imu_noise(Ekf16Config::<f64>::default())
     } else {
         Ekf16Config::default()
@@ -309,11 +335,41 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
             .accel_bias_random_walk
             .unwrap_or(defaults.accel_bias_random_walk),
     };
-    let score_from_us = args.from.map(seconds_to_us);
+    // The flight window from the log, unless both ends are given.
+    let found = if args.simulated || (args.from.is_some() && args.to.is_some()) {
+        None
+    } else {
+        let window = flight_window(LogReader::<f64>::open(&files, &reader)?);
+        match window {
+            Some(w) => eprintln!(
+                "flight window from the log: {:.1}-{:.1} s (take-off {:.1} s, landing {:.1} s, {}){}",
+                w.from_us as f64 * 1e-6,
+                w.to_us as f64 * 1e-6,
+                w.from_us as f64 * 1e-6,
+                w.landing_us as f64 * 1e-6,
+                w.impact_us.map_or_else(
+                    || "no impact".to_string(),
+                    |t| format!("impact at {:.1} s, cut 2 s before", t as f64 * 1e-6)
+                ),
+                if args.from.is_some() || args.to.is_some() {
+                    "; --from/--to override it"
+                } else {
+                    ""
+                },
+            ),
+            None => {
+                eprintln!("no flight found in the log (no GPS fix moving): scoring the whole log")
+            }
+        }
+        window
+    };
+    let from_s = args.from.or(found.map(|w| w.from_us as f64 * 1e-6));
+    let to_s = args.to.or(found.map(|w| w.to_us as f64 * 1e-6));
+    let score_from_us = from_s.map(seconds_to_us);
     let run = RunOptions {
-        start_us: args.from.map(|f| seconds_to_us(f - args.warmup)),
+        start_us: from_s.map(|f| seconds_to_us(f - args.warmup)),
         score_from_us,
-        end_us: args.to.map(seconds_to_us),
+        end_us: to_s.map(seconds_to_us),
         alignment,
         estimator_declination_rad: alignment.declination_rad,
         ..RunOptions::default()
@@ -409,6 +465,7 @@ fn simulated_log(args: &mut Args) -> Result<(), Failure> {
         dir.display()
     );
     args.inputs = vec![dir];
+    args.simulated = true;
     args.declination_deg
         .get_or_insert(field.y.atan2(field.x).to_degrees());
     args.inclination_deg
@@ -458,14 +515,21 @@ fn run(mut args: Args) -> Result<(), Failure> {
     let mut scan = LogReader::<f64>::open(&setup.files, &setup.reader)?;
     scan.by_ref().for_each(drop);
     let skips = scan.skip_counts().clone();
-    eprintln!(
-        "log: {} ({}), IMU {:.0} Hz, declination {:.2} deg, inclination {:.2} deg, trim roll {:.4} rad pitch {:.4} rad",
-        setup
-            .files
-            .imu
+    let counts = scan.stream_counts();
+    let log_path = &setup.files.imu;
+    let log_name = if log_path == &setup.files.gps {
+        log_path.display().to_string()
+    } else {
+        log_path
             .parent()
-            .map_or_else(String::new, |p| p.display().to_string()),
+            .map_or_else(String::new, |p| p.display().to_string())
+    };
+    eprintln!(
+        "log: {log_name} ({}), {} IMU, {} GPS, {} magnetometer records, IMU {:.0} Hz, declination {:.2} deg, inclination {:.2} deg, trim roll {:.4} rad pitch {:.4} rad",
         setup.files.format,
+        counts.imu,
+        counts.gps,
+        counts.mag,
         setup.imu_rate_hz,
         setup.declination_rad.to_degrees(),
         setup.inclination_rad.to_degrees(),
@@ -503,10 +567,16 @@ fn run(mut args: Args) -> Result<(), Failure> {
         let doc = json!({
             "log": args.inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
             "format": setup.files.format.name(),
+            "imu_instance": setup.reader.imu_instance,
+            "counts": { "imu": counts.imu, "gps": counts.gps, "mag": counts.mag },
             "gps_delay_added_s": args.add_gps_delay,
             "replayed_from_s": setup.run.start_us.map(|t| t as f64 * 1e-6),
             "scored_from_s": setup.run.score_from_us.map(|t| t as f64 * 1e-6),
             "to_s": setup.run.end_us.map(|t| t as f64 * 1e-6),
+            "window_s": [
+                setup.run.score_from_us.map(|t| t as f64 / 1e6),
+                setup.run.end_us.map(|t| t as f64 / 1e6),
+            ],
             "declination_deg": setup.declination_rad.to_degrees(),
             "inclination_deg": setup.inclination_rad.to_degrees(),
             "imu_rate_hz": setup.imu_rate_hz,

@@ -9,41 +9,79 @@
 //! cargo run --release --features sim --example reproduce              # everything
 //! cargo run --release --features sim --example reproduce -- --quick --json out.json
 //! cargo run --release --features sim --example reproduce -- --quick --csv target/logs   # CSV logs too
+//! cargo run --release --features sim --example reproduce -- --seeds 20                  # Monte Carlo
+//! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
+//! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # issue 11's delay suite
 //! ```
 //!
-//! Every figure is the median over the seeds of one run's RMSE, counted
-//! after `skip_s` seconds (the convergence time). Attitude errors are the
-//! differences of ZYX Euler angles wrapped to (-180, 180] degrees;
-//! velocity and position errors are the RMS of the 3-D error norm; delay is
+//! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
+//! true trajectory), `bound_heading_mag` (the same with a heading-only
+//! magnetometer, not a bound), the crate's estimators in `f64` and `f32`, and
+//! the peer `fusion_nav` (module `fusion_nav`).
+//!
+//! Every figure is the mean over the seeds of one run's RMSE, counted
+//! after `skip_s` seconds (the convergence time), with the 95 % t-interval
+//! of that mean (`stats`); seeds run in parallel (`--threads`). Attitude errors are the
+//! differences of ZYX Euler angles wrapped to (-180, 180] degrees, and
+//! beside them the tilt and heading errors of the attitude error's rotation
+//! vector (`sim::tilt_heading_error_rad`, invariant to the vehicle's own
+//! attitude); velocity and position errors are the RMS of the 3-D error norm; delay is
 //! the RMS of estimate minus true delay; biases are per-axis RMS errors.
 //! `us_per_imu_sample` is the time spent inside the estimator's own
 //! `push_*` calls divided by the number of IMU samples.
 //!
+//! Consistency: the NEES of `[position, velocity]` (6 degrees of freedom)
+//! against each filter's own 6x6 covariance block at the instant its
+//! estimate describes (the horizon for the delay-compensated navigator),
+//! sampled every 100 ms and averaged over the seeds, with the 95 %
+//! chi-square band of an average over that many seeds; and the NIS of the
+//! GPS fixes (position and velocity, 6 degrees of freedom, from the fusion
+//! records' innovations and the diagonal of their innovation covariance)
+//! averaged over every scored fix, with its band.
+//!
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
 
+pub(crate) mod delay_suite;
 mod faults;
 
 use clap::{Parser, ValueEnum};
 use delaynav::Navigator;
 use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
+use delaynav::ekf16::state as ekf16_state;
 use delaynav::geo::wrap_pi;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::sensors::{Gps, GpsPosition, Imu, Mag};
+use delaynav::sim::Trajectory;
+use delaynav::sim::{BoundConfig, BoundMagnetometer, BoundRms, trajectory_bound};
 use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
-    csv::write_run, delay_bound_s, noise_floor,
+    csv::write_run, delay_bound_s, noise_floor, tilt_heading_error_rad,
 };
-use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config};
+use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Estimate, GpsOutcome, Scalar};
+use nalgebra::{Matrix6, Quaternion, SMatrix, UnitQuaternion, Vector3, Vector6};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+
+mod fusion_nav;
+mod stats;
+mod sweep;
+
+use fusion_nav::FusionNav;
 
 /// Window of GPS fixes over which the delay bound counts information, µs.
 const DELAY_BOUND_WINDOW_US: u64 = 5_000_000;
 /// Spacing of the points kept for the plots, µs.
 const TRACE_STEP_US: u64 = 20_000;
+/// Spacing of the instants at which the NEES is sampled, µs.
+const NEES_STEP_US: u64 = 100_000;
+/// Degrees of freedom of the NEES (position and velocity) and of the GPS NIS.
+const CONSISTENCY_DOF: usize = 6;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ScenarioChoice {
@@ -90,9 +128,20 @@ struct Args {
     /// offline calibration on a separate run (sec. 2.2.2).
     #[arg(long)]
     no_calibration: bool,
+    /// Seeds run in parallel [default: the machine's available parallelism].
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Run a sweep instead of the tables: every estimator and the bound
+    /// against one parameter (a table and a plot per scenario).
+    #[arg(long, value_enum)]
+    sweep: Option<sweep::SweepName>,
     /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
     #[arg(long)]
     faults: bool,
+    /// Run the delay suite of issue 11 instead (see `delay_suite.rs`); writes
+    /// `delay_scenarios` to the JSON file.
+    #[arg(long)]
+    delay_suite: bool,
 }
 
 /// One simulated run, shared by every estimator.
@@ -103,6 +152,20 @@ struct RunSetup {
     keep_trace: bool,
     /// Where `proposed` and `aekf17` start their delay estimate.
     start: DelayStart,
+    /// The closed-form truth, for states a filter reports at a past instant.
+    trajectory: Trajectory,
+}
+
+impl RunSetup {
+    /// NEES of a position-velocity estimate against the truth at its instant.
+    fn nees(&self, (t_us, p, v, cov): &PosVelCovariance) -> f64 {
+        let truth = self.trajectory.kinematics(*t_us as f64 * 1e-6);
+        let mut e = Vector6::zeros();
+        e.fixed_rows_mut::<3>(0).copy_from(&(p - truth.position_m));
+        e.fixed_rows_mut::<3>(3)
+            .copy_from(&(v - truth.velocity_m_s));
+        cov.cholesky().map_or(f64::NAN, |c| e.dot(&c.solve(&e)))
+    }
 }
 
 /// The initial delay of the estimators that estimate it.
@@ -155,7 +218,7 @@ fn calibrate(config: &SimConfig) -> DelayStart {
 }
 
 /// Time series of one estimator on one run, for the plots.
-#[derive(Default)]
+#[derive(Default, Clone)]
 struct Trace {
     t_s: Vec<f64>,
     /// Roll, pitch, yaw error, degrees.
@@ -165,17 +228,26 @@ struct Trace {
     delay_s: Vec<f64>,
 }
 
-/// RMS errors and cost of one estimator: of one run, or medians over the
-/// seeds of a scenario.
+/// RMS errors and cost of one estimator: of one run, or one statistic
+/// (mean, interval bound) over the seeds of a scenario.
+#[derive(Clone)]
 struct Metrics {
     roll_deg: f64,
     pitch_deg: f64,
     yaw_deg: f64,
+    /// RMS of the rotation-vector tilt error (`sim::tilt_heading_error_rad`), degrees.
+    tilt_deg: f64,
+    /// RMS of the rotation-vector heading error, degrees.
+    heading_deg: f64,
     vel_m_s: f64,
     pos_m: f64,
     delay_s: Option<f64>,
     gyro_bias_rad_s: [f64; 3],
     accel_bias_g: [f64; 3],
+    /// Mean NEES of `[position, velocity]` over the scored NEES instants.
+    nees: Option<f64>,
+    /// Mean NIS of the GPS fixes fused after the skip.
+    nis: Option<f64>,
     us_per_imu_sample: f64,
 }
 
@@ -183,6 +255,10 @@ struct Metrics {
 struct RunScore {
     metrics: Metrics,
     trace: Trace,
+    /// NEES at every NEES instant after the skip (NaN without an estimate).
+    nees_series: Vec<f64>,
+    /// Sum and count of the GPS NIS after the skip.
+    nis: (f64, usize),
 }
 
 /// A registered estimator: its JSON name and how to run it on a setup.
@@ -191,78 +267,137 @@ struct Estimator {
     run: fn(&RunSetup) -> RunScore,
 }
 
+/// Position-velocity covariance of the 16-state EKF.
+fn ekf16_covariance<T: Scalar>(f: &Ekf16<T>) -> Option<PosVelCovariance> {
+    Some(pos_vel_block(&f.estimate()?, f.covariance()))
+}
+
+/// Position-velocity covariance of the augmented EKF.
+fn aekf17_covariance<T: Scalar>(f: &AugmentedEkf17<T>) -> Option<PosVelCovariance> {
+    Some(pos_vel_block(&f.estimate()?, f.covariance()))
+}
+
+/// Position-velocity covariance of the navigator's horizon EKF, at the
+/// horizon (its forward-reckoned present carries no covariance of its own).
+fn nav_covariance<T: Scalar>(n: &DelayCompensatedNav<T>) -> Option<PosVelCovariance> {
+    Some(pos_vel_block(
+        &n.horizon_estimate()?,
+        n.horizon_filter().covariance(),
+    ))
+}
+
+fn run_ekf16<T: Scalar>(s: &RunSetup) -> RunScore {
+    let filter = Ekf16::new(ekf16_config::<T>(&s.config)).expect("valid Ekf16 config");
+    score(filter, s, ekf16_covariance)
+}
+
+fn run_aekf17<T: Scalar>(s: &RunSetup) -> RunScore {
+    let mut config = Aekf17Config::with_nav(ekf16_config::<T>(&s.config));
+    config.initial_delay_s = T::lit(s.start.delay_s);
+    if let Some(std) = s.start.std_s {
+        config.initial_delay_std_s = T::lit(std);
+    }
+    let filter = AugmentedEkf17::new(config).expect("valid Aekf17 config");
+    score(filter, s, aekf17_covariance)
+}
+
+fn run_proposed<T: Scalar>(s: &RunSetup) -> RunScore {
+    let mode = DelayMode::Estimated {
+        initial_s: T::lit(s.start.delay_s),
+    };
+    score(nav::<T>(&s.config, mode, s.start.std_s), s, nav_covariance)
+}
+
+fn run_oracle<T: Scalar>(s: &RunSetup) -> RunScore {
+    let mode = DelayMode::Fixed {
+        delay_s: T::lit(s.config.delay.initial_s),
+    };
+    score(nav::<T>(&s.config, mode, None), s, nav_covariance)
+}
+
+/// The linearized bound of the run (`sim::trajectory_bound`) in the
+/// estimators' figures: the RMS over the scored samples of its per-time
+/// standard deviations.
+fn run_bound(s: &RunSetup) -> RunScore {
+    linearized(s, BoundMagnetometer::Field)
+}
+
+/// The same linearized filter taking only a heading from the magnetometer
+/// (the noise floor's model). Not a bound: the estimators' tilt-coupled
+/// heading update takes some tilt from the magnetometer too.
+fn run_bound_heading_mag(s: &RunSetup) -> RunScore {
+    linearized(s, BoundMagnetometer::Heading)
+}
+
+fn linearized(s: &RunSetup, magnetometer: BoundMagnetometer) -> RunScore {
+    let started = Instant::now();
+    let config = BoundConfig {
+        magnetometer,
+        ..BoundConfig::for_sensors(&s.config.sensors)
+    };
+    let bound = trajectory_bound(&s.events, &s.config, &config).expect("valid bound config");
+    let busy = started.elapsed();
+    let rms = bound.rms_after(s.skip_us);
+    let nan = f64::NAN;
+    let g = |r: &BoundRms| r.accel_bias_m_s2 / STANDARD_GRAVITY;
+    let metrics = Metrics {
+        roll_deg: rms.map_or(nan, |r| r.euler_rad.x.to_degrees()),
+        pitch_deg: rms.map_or(nan, |r| r.euler_rad.y.to_degrees()),
+        yaw_deg: rms.map_or(nan, |r| r.euler_rad.z.to_degrees()),
+        tilt_deg: rms.map_or(nan, |r| r.tilt_rad.to_degrees()),
+        heading_deg: rms.map_or(nan, |r| r.heading_rad.to_degrees()),
+        vel_m_s: rms.map_or(nan, |r| r.velocity_m_s),
+        pos_m: rms.map_or(nan, |r| r.position_m),
+        delay_s: None,
+        gyro_bias_rad_s: rms.map_or([nan; 3], |r| r.gyro_bias_rad_s.into()),
+        accel_bias_g: rms.map_or([nan; 3], |r| g(&r).into()),
+        nees: None,
+        nis: None,
+        us_per_imu_sample: busy.as_secs_f64() * 1e6 / bound.samples.len().max(1) as f64,
+    };
+    RunScore {
+        metrics,
+        trace: Trace::default(),
+        nees_series: Vec::new(),
+        nis: (0.0, 0),
+    }
+}
+
 /// Every estimator of the comparison, in table order. One line each.
 fn estimators() -> Vec<Estimator> {
+    let row = |name, run| Estimator { name, run };
     vec![
-        Estimator {
-            name: "ekf16",
-            run: |s| {
-                score(
-                    Ekf16::new(ekf16_config(&s.config)).expect("valid Ekf16 config"),
-                    s,
-                )
-            },
-        },
-        Estimator {
-            name: "aekf17",
-            run: |s| {
-                let mut config = Aekf17Config::with_nav(ekf16_config(&s.config));
-                config.initial_delay_s = s.start.delay_s;
-                if let Some(std) = s.start.std_s {
-                    config.initial_delay_std_s = std;
-                }
-                score(AugmentedEkf17::new(config).expect("valid Aekf17 config"), s)
-            },
-        },
-        Estimator {
-            name: "proposed",
-            run: |s| {
-                score(
-                    nav(
-                        &s.config,
-                        DelayMode::Estimated {
-                            initial_s: s.start.delay_s,
-                        },
-                        s.start.std_s,
-                    ),
-                    s,
-                )
-            },
-        },
-        Estimator {
-            name: "oracle",
-            run: |s| {
-                score(
-                    nav(
-                        &s.config,
-                        DelayMode::Fixed {
-                            delay_s: s.config.delay.initial_s,
-                        },
-                        None,
-                    ),
-                    s,
-                )
-            },
-        },
+        row("bound", run_bound),
+        row("bound_heading_mag", run_bound_heading_mag),
+        row("ekf16", run_ekf16::<f64>),
+        row("aekf17", run_aekf17::<f64>),
+        row("proposed", run_proposed::<f64>),
+        row("oracle", run_oracle::<f64>),
+        row("ekf16_f32", run_ekf16::<f32>),
+        row("aekf17_f32", run_aekf17::<f32>),
+        row("proposed_f32", run_proposed::<f32>),
+        row("fusion_nav", |s| {
+            score::<f32, _>(FusionNav::new(&s.config), s, |_| None)
+        }),
     ]
 }
 
 /// The delay-compensated navigator on the same EKF configuration as `ekf16`:
 /// `proposed` estimates the delay (initial std `initial_std_s`, else the
 /// loop's default), `oracle` is given the true (constant) one.
-fn nav(
+fn nav<T: Scalar>(
     sim: &SimConfig,
-    mode: DelayMode<f64>,
+    mode: DelayMode<T>,
     initial_std_s: Option<f64>,
-) -> DelayCompensatedNav<f64> {
+) -> DelayCompensatedNav<T> {
     let mut config = NavConfig {
-        ekf: ekf16_config(sim),
+        ekf: ekf16_config::<T>(sim),
         mode,
-        imu_rate_hz: sim.sensors.imu_rate_hz,
+        imu_rate_hz: T::lit(sim.sensors.imu_rate_hz),
         ..NavConfig::default()
     };
     if let Some(std) = initial_std_s {
-        config.delay_loop.fusion.initial_std_s = std;
+        config.delay_loop.fusion.initial_std_s = T::lit(std);
     }
     DelayCompensatedNav::new(config).expect("valid navigator config")
 }
@@ -270,22 +405,22 @@ fn nav(
 /// The 16-state EKF configured with the simulator's own noise (Table 3 read
 /// per sample at the IMU rate), magnetic field and bias spread (the standard
 /// deviation of a uniform draw in `[-max, max]` is `max / sqrt(3)`).
-fn ekf16_config(sim: &SimConfig) -> Ekf16Config<f64> {
+fn ekf16_config<T: Scalar>(sim: &SimConfig) -> Ekf16Config<T> {
     let s = &sim.sensors;
     let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
     Ekf16Config {
-        mag_inclination_rad: s.inclination_rad,
-        mag_declination_rad: s.declination_rad,
-        mag_noise_variance: s.mag_noise_var,
-        gps_horizontal_std_m: s.gps_position_var_m2.sqrt(),
-        gps_vertical_std_m: s.gps_position_var_m2.sqrt(),
-        gps_velocity_std_m_s: s.gps_velocity_var_m2_s2.sqrt(),
-        initial_accel_bias_std_m_s2: (s.accel_bias_max_m_s2() / 3f64.sqrt()).max(1e-3),
-        initial_gyro_bias_std_rad_s: (s.gyro_bias_max_rad_s / 3f64.sqrt()).max(1e-4),
+        mag_inclination_rad: T::lit(s.inclination_rad),
+        mag_declination_rad: T::lit(s.declination_rad),
+        mag_noise_variance: T::lit(s.mag_noise_var),
+        gps_horizontal_std_m: T::lit(s.gps_position_var_m2.sqrt()),
+        gps_vertical_std_m: T::lit(s.gps_position_var_m2.sqrt()),
+        gps_velocity_std_m_s: T::lit(s.gps_velocity_var_m2_s2.sqrt()),
+        initial_accel_bias_std_m_s2: T::lit((s.accel_bias_max_m_s2() / 3f64.sqrt()).max(1e-3)),
+        initial_gyro_bias_std_rad_s: T::lit((s.gyro_bias_max_rad_s / 3f64.sqrt()).max(1e-4)),
         ..Ekf16Config::with_per_sample_imu_variances(
-            s.gyro_noise_var_rad2_s2,
-            s.accel_noise_var_g2 * g2,
-            s.imu_rate_hz,
+            T::lit(s.gyro_noise_var_rad2_s2),
+            T::lit(s.accel_noise_var_g2 * g2),
+            T::lit(s.imu_rate_hz),
         )
     }
 }
@@ -311,10 +446,112 @@ impl Rms {
     }
 }
 
-/// Feeds a run to a navigator, timing only its own calls, and scores its
-/// estimate against the truth at every IMU sample after the skip.
-fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
+/// What a filter reports about its own position and velocity error: the
+/// instant its estimate describes, the estimate, and the 6x6 covariance of
+/// `[position, velocity]` (NED, m and m/s).
+type PosVelCovariance = (u64, Vector3<f64>, Vector3<f64>, Matrix6<f64>);
+
+/// The `[position, velocity]` block of a 16- (or 17-) state covariance in
+/// `Ekf16`'s state order (q0..q3, position, velocity, biases[, delay]).
+fn pos_vel_block<T: Scalar, const N: usize>(
+    estimate: &Estimate<T>,
+    p: &SMatrix<T, N, N>,
+) -> PosVelCovariance {
+    (
+        estimate.t_us,
+        estimate.position_ned_m.map(T::as_f64),
+        estimate.velocity_ned_m_s.map(T::as_f64),
+        p.fixed_view::<6, 6>(ekf16_state::POS, ekf16_state::POS)
+            .map(T::as_f64),
+    )
+}
+
+/// The simulator's samples in the estimator's float type.
+fn imu_as<T: Scalar>(s: &Imu<f64>) -> Imu<T> {
+    Imu {
+        t_us: s.t_us,
+        gyro_rad_s: s.gyro_rad_s.map(T::lit),
+        accel_m_s2: s.accel_m_s2.map(T::lit),
+    }
+}
+
+fn mag_as<T: Scalar>(m: &Mag<f64>) -> Mag<T> {
+    Mag {
+        t_us: m.t_us,
+        field_body: m.field_body.map(T::lit),
+    }
+}
+
+fn gps_as<T: Scalar>(g: &Gps<f64>) -> Gps<T> {
+    Gps {
+        t_us: g.t_us,
+        position: match g.position {
+            GpsPosition::Ned(p) => GpsPosition::Ned(p.map(T::lit)),
+            GpsPosition::Geodetic(p) => GpsPosition::Geodetic(p),
+        },
+        velocity_ned_m_s: g.velocity_ned_m_s.map(T::lit),
+        horizontal_accuracy_m: g.horizontal_accuracy_m.map(T::lit),
+        vertical_accuracy_m: g.vertical_accuracy_m.map(T::lit),
+        speed_accuracy_m_s: g.speed_accuracy_m_s.map(T::lit),
+    }
+}
+
+/// Normalized innovation squared of a GPS fusion, position and velocity
+/// (6 degrees of freedom), from the records' innovations and the diagonal
+/// of their innovation covariance.
+fn gps_nis<T: Scalar>(outcome: &GpsOutcome<T>) -> Option<f64> {
+    let GpsOutcome::Fused { position, velocity } = outcome else {
+        return None;
+    };
+    let mut nis = 0.0;
+    for r in [position, velocity] {
+        for i in 0..3 {
+            let s = r.innovation_variance[i].as_f64();
+            if s.is_nan() || s <= 0.0 {
+                return None;
+            }
+            nis += r.innovation[i].as_f64().powi(2) / s;
+        }
+    }
+    Some(nis)
+}
+
+/// The NEES instants: the first IMU sample at or after each `50 ms + k 100 ms`
+/// (half-way between two 10 Hz fixes), the same on every seed.
+struct NeesClock {
+    next_us: u64,
+}
+
+impl NeesClock {
+    fn new() -> Self {
+        Self {
+            next_us: NEES_STEP_US / 2,
+        }
+    }
+
+    /// Whether the sample at `t_us` is an instant (call once per IMU sample).
+    fn tick(&mut self, t_us: u64) -> bool {
+        if t_us < self.next_us {
+            return false;
+        }
+        while self.next_us <= t_us {
+            self.next_us += NEES_STEP_US;
+        }
+        true
+    }
+}
+
+/// Feeds a run to a navigator in float type `T`, timing only its own calls,
+/// and scores its estimate against the truth at every IMU sample after the
+/// skip; `covariance` reads the filter's position-velocity covariance for
+/// the NEES.
+fn score<T: Scalar, N: Navigator<T>>(
+    mut nav: N,
+    setup: &RunSetup,
+    covariance: impl Fn(&N) -> Option<PosVelCovariance>,
+) -> RunScore {
     let mut euler = [Rms::default(); 3];
+    let (mut tilt, mut heading) = (Rms::default(), Rms::default());
     let (mut vel, mut pos, mut delay) = (Rms::default(), Rms::default(), Rms::default());
     let mut gyro_bias = [Rms::default(); 3];
     let mut accel_bias = [Rms::default(); 3];
@@ -323,56 +560,85 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
     let mut busy = std::time::Duration::ZERO;
     let mut imu_samples = 0usize;
     let mut trace = Trace::default();
+    let mut nees_series = Vec::new();
+    let (mut nis_sum, mut nis_count) = (0.0, 0usize);
+    let mut nees_clock = NeesClock::new();
     for event in &setup.events {
+        // Conversion to `T` happens outside the timed call.
+        let converted = match event {
+            SimEvent::Imu { sample, .. } => Sample::Imu(imu_as::<T>(sample)),
+            SimEvent::Mag(m) => Sample::Mag(mag_as::<T>(m)),
+            SimEvent::Gps { fix, .. } => Sample::Gps(gps_as::<T>(fix)),
+        };
         let start = Instant::now();
         // Refusals are the estimator's business (it counts them); scoring
         // goes on with whatever estimate it holds.
-        match event {
-            SimEvent::Imu { sample, .. } => {
-                let _ = nav.push_imu(sample);
+        let outcome = match &converted {
+            Sample::Imu(s) => {
+                let _ = nav.push_imu(s);
+                None
             }
-            SimEvent::Mag(m) => {
+            Sample::Mag(m) => {
                 let _ = nav.push_mag(m);
+                None
             }
-            SimEvent::Gps { fix, .. } => {
-                let _ = nav.push_gps(fix);
-            }
-        }
+            Sample::Gps(g) => nav.push_gps(g).ok(),
+        };
         busy += start.elapsed();
+        if let Some(nis) = outcome.as_ref().and_then(gps_nis)
+            && event.t_us() >= setup.skip_us
+        {
+            nis_sum += nis;
+            nis_count += 1;
+        }
         let SimEvent::Imu { truth, .. } = event else {
             continue;
         };
         imu_samples += 1;
+        let nees_instant = nees_clock.tick(truth.t_us);
         if truth.t_us < setup.skip_us && !setup.keep_trace {
             continue;
         }
         let Some(est) = nav.estimate() else {
             if truth.t_us >= setup.skip_us {
                 missing += 1;
+                if nees_instant {
+                    nees_series.push(f64::NAN);
+                }
             }
             continue;
         };
-        let e = est.euler_rad();
+        let attitude = UnitQuaternion::new_normalize(Quaternion::from(
+            est.attitude.quaternion().coords.map(T::as_f64),
+        ));
+        let e = est.euler_rad().map(T::as_f64);
         let err_deg: [f64; 3] =
             core::array::from_fn(|i| wrap_pi(e[i] - truth.euler_rad[i]).to_degrees());
-        let delay_err = est.delay_s.map(|d| d - truth.gps_delay_s);
+        let delay_err = est.delay_s.map(|d| d.as_f64() - truth.gps_delay_s);
         if setup.keep_trace && truth.t_us.is_multiple_of(TRACE_STEP_US) {
             trace.t_s.push(truth.t_us as f64 * 1e-6);
             trace.attitude_err_deg.push(err_deg);
             trace.pitch_deg.push(e[1].to_degrees());
-            trace.delay_s.push(est.delay_s.unwrap_or(f64::NAN));
+            trace.delay_s.push(est.delay_s.map_or(f64::NAN, T::as_f64));
         }
         if truth.t_us < setup.skip_us {
             continue;
         }
+        if nees_instant {
+            nees_series.push(covariance(&nav).map_or(f64::NAN, |c| setup.nees(&c)));
+        }
+        let (tilt_rad, heading_rad) = tilt_heading_error_rad(&attitude, &truth.attitude);
+        tilt.add(tilt_rad.to_degrees());
+        heading.add(heading_rad.to_degrees());
         for i in 0..3 {
             euler[i].add(err_deg[i]);
-            gyro_bias[i].add(est.gyro_bias_rad_s[i] - truth.gyro_bias_rad_s[i]);
-            accel_bias[i]
-                .add((est.accel_bias_m_s2[i] - truth.accel_bias_m_s2[i]) / STANDARD_GRAVITY);
+            gyro_bias[i].add(est.gyro_bias_rad_s[i].as_f64() - truth.gyro_bias_rad_s[i]);
+            accel_bias[i].add(
+                (est.accel_bias_m_s2[i].as_f64() - truth.accel_bias_m_s2[i]) / STANDARD_GRAVITY,
+            );
         }
-        vel.add((est.velocity_ned_m_s - truth.velocity_m_s).norm());
-        pos.add((est.position_ned_m - truth.position_m).norm());
+        vel.add((est.velocity_ned_m_s.map(T::as_f64) - truth.velocity_m_s).norm());
+        pos.add((est.position_ned_m.map(T::as_f64) - truth.position_m).norm());
         if let Some(d) = delay_err {
             has_delay = true;
             delay.add(d);
@@ -380,18 +646,40 @@ fn score<N: Navigator<f64>>(mut nav: N, setup: &RunSetup) -> RunScore {
     }
     // An estimator without an estimate after the convergence time fails the run.
     let penalty = if missing > 0 { f64::NAN } else { 0.0 };
+    let finite_nees: Vec<f64> = nees_series
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .collect();
     let metrics = Metrics {
         roll_deg: euler[0].value() + penalty,
         pitch_deg: euler[1].value() + penalty,
         yaw_deg: euler[2].value() + penalty,
+        tilt_deg: tilt.value() + penalty,
+        heading_deg: heading.value() + penalty,
         vel_m_s: vel.value() + penalty,
         pos_m: pos.value() + penalty,
         delay_s: has_delay.then(|| delay.value() + penalty),
         gyro_bias_rad_s: gyro_bias.map(|r| r.value() + penalty),
         accel_bias_g: accel_bias.map(|r| r.value() + penalty),
+        nees: (!finite_nees.is_empty())
+            .then(|| finite_nees.iter().sum::<f64>() / finite_nees.len() as f64 + penalty),
+        nis: (nis_count > 0).then(|| nis_sum / nis_count as f64 + penalty),
         us_per_imu_sample: busy.as_secs_f64() * 1e6 / imu_samples.max(1) as f64,
     };
-    RunScore { metrics, trace }
+    RunScore {
+        metrics,
+        trace,
+        nees_series,
+        nis: (nis_sum, nis_count),
+    }
+}
+
+/// One simulated sample converted to the estimator's float type.
+enum Sample<T: Scalar> {
+    Imu(Imu<T>),
+    Mag(Mag<T>),
+    Gps(Gps<T>),
 }
 
 /// Median of finite values; NaN when any is not finite (a failed run shows).
@@ -408,22 +696,95 @@ fn median(mut xs: Vec<f64>) -> f64 {
     }
 }
 
-/// Medians over the seeds of one estimator's metrics.
-fn summarize(runs: &[Metrics]) -> Metrics {
-    let m = |f: &dyn Fn(&Metrics) -> f64| median(runs.iter().map(f).collect());
+/// One statistic over the seeds of every figure of an estimator.
+fn metrics_over(runs: &[Metrics], stat: &dyn Fn(&[f64]) -> f64) -> Metrics {
+    let m = |f: &dyn Fn(&Metrics) -> f64| stat(&runs.iter().map(f).collect::<Vec<_>>());
+    let opt = |f: &dyn Fn(&Metrics) -> Option<f64>| {
+        f(&runs[0])
+            .is_some()
+            .then(|| m(&|r| f(r).unwrap_or(f64::NAN)))
+    };
     Metrics {
         roll_deg: m(&|r| r.roll_deg),
         pitch_deg: m(&|r| r.pitch_deg),
         yaw_deg: m(&|r| r.yaw_deg),
+        tilt_deg: m(&|r| r.tilt_deg),
+        heading_deg: m(&|r| r.heading_deg),
         vel_m_s: m(&|r| r.vel_m_s),
         pos_m: m(&|r| r.pos_m),
-        delay_s: runs[0]
-            .delay_s
-            .is_some()
-            .then(|| m(&|r| r.delay_s.unwrap_or(f64::NAN))),
+        delay_s: opt(&|r| r.delay_s),
         gyro_bias_rad_s: core::array::from_fn(|i| m(&|r| r.gyro_bias_rad_s[i])),
         accel_bias_g: core::array::from_fn(|i| m(&|r| r.accel_bias_g[i])),
+        nees: opt(&|r| r.nees),
+        nis: opt(&|r| r.nis),
         us_per_imu_sample: m(&|r| r.us_per_imu_sample),
+    }
+}
+
+/// Mean over the seeds of every figure, and the bounds of its 95 %
+/// t-interval (`stats::mean_ci95`).
+struct Summary {
+    mean: Metrics,
+    lo: Metrics,
+    hi: Metrics,
+}
+
+fn summarize(runs: &[Metrics]) -> Summary {
+    Summary {
+        mean: metrics_over(runs, &|xs| stats::mean_ci95(xs).0),
+        lo: metrics_over(runs, &|xs| stats::mean_ci95(xs).1),
+        hi: metrics_over(runs, &|xs| stats::mean_ci95(xs).2),
+    }
+}
+
+/// Filter consistency of one estimator over the seeds of a scenario.
+struct Consistency {
+    /// Time average of the seed-averaged NEES (position and velocity).
+    nees_mean: f64,
+    /// 95 % band of a seed-averaged NEES at one instant.
+    nees_band: (f64, f64),
+    /// Share of the NEES instants whose seed average lies in the band.
+    nees_in_band: f64,
+    /// Mean GPS NIS over every scored fix of every seed.
+    nis_mean: f64,
+    /// 95 % band of that mean (innovations of a consistent filter are white).
+    nis_band: (f64, f64),
+}
+
+fn consistency(scores: &[RunScore]) -> Consistency {
+    let instants = scores
+        .iter()
+        .map(|s| s.nees_series.len())
+        .min()
+        .unwrap_or(0);
+    let seeds = scores.len();
+    let averaged: Vec<f64> = (0..instants)
+        .map(|k| scores.iter().map(|s| s.nees_series[k]).sum::<f64>() / seeds as f64)
+        .collect();
+    let finite: Vec<f64> = averaged.iter().copied().filter(|x| x.is_finite()).collect();
+    let nees_band = stats::chi2_band95(CONSISTENCY_DOF, seeds);
+    let nees_mean = if finite.is_empty() || finite.len() < averaged.len() {
+        f64::NAN
+    } else {
+        finite.iter().sum::<f64>() / finite.len() as f64
+    };
+    let inside = finite
+        .iter()
+        .filter(|x| (nees_band.0..=nees_band.1).contains(*x))
+        .count();
+    let (nis_sum, nis_count) = scores
+        .iter()
+        .fold((0.0, 0), |(s, n), r| (s + r.nis.0, n + r.nis.1));
+    Consistency {
+        nees_mean,
+        nees_band,
+        nees_in_band: inside as f64 / averaged.len().max(1) as f64,
+        nis_mean: if nis_count > 0 {
+            nis_sum / nis_count as f64
+        } else {
+            f64::NAN
+        },
+        nis_band: stats::chi2_band95(CONSISTENCY_DOF, nis_count),
     }
 }
 
@@ -467,7 +828,10 @@ struct ScenarioResult {
     true_delay_s: f64,
     delay_bound_s: f64,
     floor_hover: NoiseFloor,
-    summaries: Vec<(&'static str, Metrics)>,
+    summaries: Vec<(&'static str, Summary)>,
+    consistency: Vec<(&'static str, Consistency)>,
+    /// Every seed's metrics per estimator, in registry order (paired comparisons).
+    per_seed: Vec<(&'static str, Vec<Metrics>)>,
     /// First seed's traces per estimator, and the truth's pitch and delay.
     traces: Vec<(&'static str, Trace)>,
     truth_trace: Vec<(f64, f64, f64)>,
@@ -491,6 +855,68 @@ impl ScenarioResult {
     }
 }
 
+/// The paired comparisons printed and written: `proposed` against each.
+const PAIRED_AGAINST: [&str; 3] = ["oracle", "aekf17", "ekf16"];
+
+/// Figures of the paired comparison: the errors of [`FIGURES`] (roll to position).
+const PAIRED_FIGURES: &[Figure] = FIGURES.split_at(7).0;
+
+/// A mean over the seeds with its 95 % interval, `(mean, lo, hi)`.
+type MeanCi = (f64, f64, f64);
+
+impl ScenarioResult {
+    /// Per figure, the mean over the seeds of `proposed - other` on the same
+    /// seed and its 95 % t-interval, `(mean, lo, hi)`; `None` when a row is
+    /// missing.
+    fn paired(&self, other: &str) -> Option<Vec<(&'static str, MeanCi)>> {
+        let runs = |name: &str| {
+            self.per_seed
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, m)| m)
+        };
+        let (p, o) = (runs("proposed")?, runs(other)?);
+        Some(
+            PAIRED_FIGURES
+                .iter()
+                .map(|(name, get)| {
+                    let d: Vec<f64> = p
+                        .iter()
+                        .zip(o)
+                        .map(|(a, b)| get(a).unwrap_or(f64::NAN) - get(b).unwrap_or(f64::NAN))
+                        .collect();
+                    (*name, stats::mean_ci95(&d))
+                })
+                .collect(),
+        )
+    }
+}
+
+/// A mean and the half-width of its 95 % interval.
+fn fmt_ci(mean: f64, lo: f64, hi: f64) -> String {
+    let half = 0.5 * (hi - lo);
+    // The bound is the same on every seed: no interval to show.
+    if half.abs() <= 1e-9 * mean.abs() {
+        return fmt_value(mean);
+    }
+    if mean.is_finite() && lo.is_finite() && hi.is_finite() {
+        format!("{} ±{}", fmt_value(mean), fmt_short(half))
+    } else {
+        fmt_value(mean)
+    }
+}
+
+/// Two significant digits.
+fn fmt_short(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else if x.abs() >= 0.01 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
 fn fmt_value(x: f64) -> String {
     if !x.is_finite() {
         "fail".into()
@@ -508,7 +934,7 @@ fn fmt_value(x: f64) -> String {
 type TableRow<'a> = (
     &'a str,
     &'a dyn Fn(&Metrics) -> Option<f64>,
-    (f64, f64),
+    Option<(f64, f64)>,
     String,
 );
 
@@ -518,7 +944,7 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         let names: Vec<&str> = r.summaries.iter().map(|(n, _)| *n).collect();
         let _ = writeln!(
             out,
-            "\n### `{}`: acceleration limit {} m/s², true delay {} s; median over {} seeds of the RMSE after {} s of {} s\n",
+            "\n### `{}`: acceleration limit {} m/s², true delay {} s; mean ±95 % t-interval over {} seeds of the RMSE after {} s of {} s\n",
             r.scenario.name(),
             r.scenario.accel_limit_m_s2(),
             r.true_delay_s,
@@ -552,23 +978,38 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         let _ = writeln!(out, "|---|{}---|---|---|", "---|".repeat(names.len()));
         let paper = paper_table6(r.scenario);
         let f = &r.floor_hover;
-        let rows: [TableRow; 6] = [
+        let rows: [TableRow; 8] = [
             (
                 "pitch (deg)",
                 &|s| Some(s.pitch_deg),
-                paper[0],
+                Some(paper[0]),
                 fmt_value(f.tilt_rad.to_degrees()),
             ),
             (
                 "roll (deg)",
                 &|s| Some(s.roll_deg),
-                paper[1],
+                Some(paper[1]),
                 fmt_value(f.tilt_rad.to_degrees()),
             ),
             (
                 "yaw (deg)",
                 &|s| Some(s.yaw_deg),
-                paper[2],
+                Some(paper[2]),
+                format!(
+                    "{} (mag only)",
+                    fmt_value(f.heading_mag_only_rad.to_degrees())
+                ),
+            ),
+            (
+                "tilt (deg)",
+                &|s| Some(s.tilt_deg),
+                None,
+                fmt_value(f.tilt_rad.to_degrees()),
+            ),
+            (
+                "heading (deg)",
+                &|s| Some(s.heading_deg),
+                None,
                 format!(
                     "{} (mag only)",
                     fmt_value(f.heading_mag_only_rad.to_degrees())
@@ -577,40 +1018,49 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
             (
                 "velocity (m/s)",
                 &|s| Some(s.vel_m_s),
-                paper[3],
+                Some(paper[3]),
                 fmt_value(f.velocity_norm_m_s),
             ),
             (
                 "position (m)",
                 &|s| Some(s.pos_m),
-                paper[4],
+                Some(paper[4]),
                 fmt_value(f.position_norm_m),
             ),
             (
                 "delay (s)",
                 &|s| s.delay_s,
-                paper[5],
+                Some(paper[5]),
                 format!("{} (bound)", fmt_value(r.delay_bound_s)),
             ),
         ];
-        for (label, get, (p_prop, p_aekf), floor) in rows {
+        for (label, get, paper, floor) in rows {
             let ours: Vec<String> = r
                 .summaries
                 .iter()
-                .map(|(_, s)| get(s).map_or("-".into(), fmt_value))
+                .map(|(_, s)| {
+                    get(&s.mean).map_or("-".into(), |m| {
+                        fmt_ci(
+                            m,
+                            get(&s.lo).unwrap_or(f64::NAN),
+                            get(&s.hi).unwrap_or(f64::NAN),
+                        )
+                    })
+                })
                 .collect();
+            let (p_prop, p_aekf) = paper.map_or(("-".into(), "-".into()), |(p, a)| {
+                (fmt_value(p), fmt_value(a))
+            });
             let _ = writeln!(
                 out,
-                "| {label} | {} | {} | {} | {floor} |",
+                "| {label} | {} | {p_prop} | {p_aekf} | {floor} |",
                 ours.join(" | "),
-                fmt_value(p_prop),
-                fmt_value(p_aekf)
             );
         }
         let timing: Vec<String> = r
             .summaries
             .iter()
-            .map(|(_, s)| format!("{:.2}", s.us_per_imu_sample))
+            .map(|(_, s)| format!("{:.2}", s.mean.us_per_imu_sample))
             .collect();
         let _ = writeln!(out, "| µs per IMU sample | {} | | | |", timing.join(" | "));
 
@@ -638,11 +1088,14 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
                 .summaries
                 .iter()
                 .map(|(_, s)| {
-                    fmt_value(if i < 3 {
-                        s.gyro_bias_rad_s[i]
-                    } else {
-                        s.accel_bias_g[i - 3]
-                    })
+                    let get = |m: &Metrics| {
+                        if i < 3 {
+                            m.gyro_bias_rad_s[i]
+                        } else {
+                            m.accel_bias_g[i - 3]
+                        }
+                    };
+                    fmt_ci(get(&s.mean), get(&s.lo), get(&s.hi))
                 })
                 .collect();
             let (p_ekf, p_prop) = PAPER_TABLE5[i];
@@ -652,6 +1105,60 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
                 ours.join(" | "),
                 fmt_value(p_ekf),
                 fmt_value(p_prop)
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\nPaired differences (`{}`): `proposed` minus each row on the same seeds, mean \
+             ±95 % t-interval; negative: `proposed` lower\n",
+            r.scenario.name()
+        );
+        let _ = writeln!(
+            out,
+            "| proposed minus | {} |",
+            PAIRED_FIGURES
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
+        let _ = writeln!(out, "|---|{}", "---|".repeat(PAIRED_FIGURES.len()));
+        for other in PAIRED_AGAINST {
+            if let Some(diffs) = r.paired(other) {
+                let cells: Vec<String> = diffs
+                    .iter()
+                    .map(|(_, (m, lo, hi))| fmt_ci(*m, *lo, *hi))
+                    .collect();
+                let _ = writeln!(out, "| {other} | {} |", cells.join(" | "));
+            }
+        }
+        let _ = writeln!(
+            out,
+            "\nConsistency (`{}`): NEES of [position, velocity] (6 dof, the filter's own covariance \
+             at the instant its estimate describes), every 100 ms, averaged over the seeds; GPS NIS \
+             (6 dof, diagonal of S) over every scored fix\n",
+            r.scenario.name()
+        );
+        let _ = writeln!(
+            out,
+            "| estimator | NEES mean | NEES 95 % band | instants in band | NIS mean | NIS 95 % band |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|---|");
+        for (name, c) in &r.consistency {
+            if c.nees_mean.is_nan() && c.nis_mean.is_nan() && c.nis_band.0.is_nan() {
+                // The bound: no estimate, no innovations.
+                continue;
+            }
+            let _ = writeln!(
+                out,
+                "| {name} | {} | [{:.2}, {:.2}] | {:.0} % | {} | [{:.2}, {:.2}] |",
+                fmt_value(c.nees_mean),
+                c.nees_band.0,
+                c.nees_band.1,
+                100.0 * c.nees_in_band,
+                fmt_value(c.nis_mean),
+                c.nis_band.0,
+                c.nis_band.1
             );
         }
     }
@@ -667,30 +1174,85 @@ fn json_number(x: f64) -> Value {
     if x.is_finite() { json!(x) } else { Value::Null }
 }
 
+fn json_pair((lo, hi): (f64, f64)) -> Value {
+    json!([json_number(lo), json_number(hi)])
+}
+
+/// The scalar figures of an entry: JSON name and how to read it.
+type Figure = (&'static str, fn(&Metrics) -> Option<f64>);
+
+const FIGURES: [Figure; 10] = [
+    ("roll_deg", |m| Some(m.roll_deg)),
+    ("pitch_deg", |m| Some(m.pitch_deg)),
+    ("yaw_deg", |m| Some(m.yaw_deg)),
+    ("tilt_deg", |m| Some(m.tilt_deg)),
+    ("heading_deg", |m| Some(m.heading_deg)),
+    ("vel_m_s", |m| Some(m.vel_m_s)),
+    ("pos_m", |m| Some(m.pos_m)),
+    ("delay_s", |m| m.delay_s),
+    ("nis_run_mean", |m| m.nis),
+    ("us_per_imu_sample", |m| Some(m.us_per_imu_sample)),
+];
+
+/// One estimator's entry: every figure's mean over the seeds and, as
+/// `<name>_ci95`, its 95 % t-interval.
+fn estimator_json(s: &Summary) -> serde_json::Map<String, Value> {
+    let mut entry = serde_json::Map::new();
+    for (name, get) in FIGURES {
+        entry.insert(name.into(), get(&s.mean).map_or(Value::Null, json_number));
+        let ci = match (get(&s.lo), get(&s.hi)) {
+            (Some(lo), Some(hi)) => json_pair((lo, hi)),
+            _ => Value::Null,
+        };
+        entry.insert(format!("{name}_ci95"), ci);
+    }
+    type Biases = fn(&Metrics) -> [f64; 3];
+    let biases: [(&str, Biases); 2] = [
+        ("gyro_bias_rad_s", |m| m.gyro_bias_rad_s),
+        ("accel_bias_g", |m| m.accel_bias_g),
+    ];
+    for (name, get) in biases {
+        entry.insert(name.into(), json!(get(&s.mean).map(json_number)));
+        let (lo, hi) = (get(&s.lo), get(&s.hi));
+        let ci: Vec<Value> = (0..3).map(|i| json_pair((lo[i], hi[i]))).collect();
+        entry.insert(format!("{name}_ci95"), Value::Array(ci));
+    }
+    entry
+}
+
 fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f64) -> Value {
     let scenarios: Vec<Value> = results
         .iter()
         .map(|r| {
             let mut estimators = serde_json::Map::new();
-            for (name, s) in &r.summaries {
-                estimators.insert(
-                    (*name).into(),
-                    json!({
-                        "roll_deg": json_number(s.roll_deg),
-                        "pitch_deg": json_number(s.pitch_deg),
-                        "yaw_deg": json_number(s.yaw_deg),
-                        "vel_m_s": json_number(s.vel_m_s),
-                        "pos_m": json_number(s.pos_m),
-                        "delay_s": s.delay_s.map_or(Value::Null, json_number),
-                        "gyro_bias_rad_s": s.gyro_bias_rad_s.map(json_number),
-                        "accel_bias_g": s.accel_bias_g.map(json_number),
-                        "us_per_imu_sample": json_number(s.us_per_imu_sample),
-                    }),
-                );
+            for ((name, s), (_, c)) in r.summaries.iter().zip(&r.consistency) {
+                let mut entry = estimator_json(s);
+                entry.insert("nees_mean".into(), json_number(c.nees_mean));
+                entry.insert("nees_band95".into(), json_pair(c.nees_band));
+                entry.insert("nees_in_band_fraction".into(), json_number(c.nees_in_band));
+                entry.insert("nis_mean".into(), json_number(c.nis_mean));
+                entry.insert("nis_band95".into(), json_pair(c.nis_band));
+                estimators.insert((*name).into(), Value::Object(entry));
             }
             let f = &r.floor_hover;
+            let mut paired = serde_json::Map::new();
+            for other in PAIRED_AGAINST {
+                if let Some(diffs) = r.paired(other) {
+                    let entry: serde_json::Map<String, Value> = diffs
+                        .iter()
+                        .map(|(n, (m, lo, hi))| {
+                            (
+                                (*n).to_string(),
+                                json!({"mean": json_number(*m), "ci95": json_pair((*lo, *hi))}),
+                            )
+                        })
+                        .collect();
+                    paired.insert(format!("proposed_minus_{other}"), Value::Object(entry));
+                }
+            }
             json!({
                 "name": r.scenario.name(),
+                "paired": paired,
                 "accel_limit_m_s2": r.scenario.accel_limit_m_s2(),
                 "true_delay_s": r.true_delay_s,
                 "delay_bound_s": json_number(r.delay_bound_s),
@@ -730,7 +1292,9 @@ struct Panel<'a> {
 
 /// Line colours: the truth, then the estimators in registry order.
 const TRUTH_COLOR: &str = "#000000";
-const COLORS: [&str; 5] = ["#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"];
+const COLORS: [&str; 8] = [
+    "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
+];
 
 /// A minimal SVG line plot: stacked panels sharing the time axis.
 fn svg_panels(title: &str, panels: &[Panel]) -> String {
@@ -880,7 +1444,8 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
             y: r.truth_trace.iter().map(|p| p.2).collect(),
         }],
     };
-    for (k, (name, trace)) in r.traces.iter().enumerate() {
+    let plotted = r.traces.iter().filter(|(_, t)| !t.t_s.is_empty());
+    for (k, (name, trace)) in plotted.enumerate() {
         let color = COLORS[k % COLORS.len()];
         pitch.series.push(Series {
             name,
@@ -929,113 +1494,171 @@ fn sim_config(scenario: Scenario, seed: u64, duration_s: f64, delay_s: Option<f6
     config
 }
 
+/// What one seed of a scenario gives.
+struct SeedResult {
+    delay_bound_s: f64,
+    calibrated_delay_s: Option<f64>,
+    /// One score per registered estimator, in registry order.
+    scores: Vec<RunScore>,
+    /// The truth's pitch and delay, for the plots (first seed only).
+    truth_trace: Vec<(f64, f64, f64)>,
+}
+
+/// Simulates one seed, calibrates, and runs every estimator on it.
+fn run_seed(
+    scenario: Scenario,
+    seed: u64,
+    first: bool,
+    options: &RunOptions,
+    registry: &[Estimator],
+    progress: &Mutex<Progress>,
+) -> SeedResult {
+    let config = options.sim_config(scenario, seed);
+    let simulation = Simulation::new(config.clone()).expect("valid simulation config");
+    let trajectory = simulation.trajectory().clone();
+    let events: Vec<SimEvent> = simulation.collect();
+    let skip_us = (options.skip_s * 1e6).round() as u64;
+    let fixes: Vec<(u64, Vector3<f64>)> = events
+        .iter()
+        .filter_map(|e| match e {
+            SimEvent::Gps {
+                fix,
+                truth_at_validity,
+                ..
+            } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
+            _ => None,
+        })
+        .collect();
+    let delay_bound_s = delay_bound_s(
+        &fixes,
+        config.sensors.gps_velocity_var_m2_s2,
+        DELAY_BOUND_WINDOW_US,
+        skip_us,
+    )
+    .unwrap_or(f64::NAN);
+    let truth_trace = if first {
+        events
+            .iter()
+            .filter_map(|e| match e {
+                SimEvent::Imu { truth, .. } if truth.t_us.is_multiple_of(TRACE_STEP_US) => Some((
+                    truth.t_us as f64 * 1e-6,
+                    truth.euler_rad.y.to_degrees(),
+                    truth.gps_delay_s,
+                )),
+                _ => None,
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let (start, calibrated_delay_s) = if options.calibrated {
+        let mut cal = config.clone();
+        cal.seed = seed + CALIBRATION_SEED_OFFSET;
+        cal.duration_s = CALIBRATION_DURATION_S;
+        let start = calibrate(&cal);
+        (start, Some(start.delay_s))
+    } else {
+        (UNCALIBRATED_START, None)
+    };
+    let setup = RunSetup {
+        config,
+        events,
+        skip_us,
+        keep_trace: first,
+        start,
+        trajectory,
+    };
+    let scores = registry
+        .iter()
+        .map(|estimator| {
+            let started = Instant::now();
+            let s = (estimator.run)(&setup);
+            if let Ok(mut p) = progress.lock() {
+                p.step(
+                    scenario.name(),
+                    seed,
+                    estimator.name,
+                    started.elapsed().as_secs_f64(),
+                );
+            }
+            s
+        })
+        .collect();
+    SeedResult {
+        delay_bound_s,
+        calibrated_delay_s,
+        scores,
+        truth_trace,
+    }
+}
+
+/// Runs the seeds of a scenario on `options.threads` threads, each taking
+/// the next seed not yet started.
 fn run_scenario(
     scenario: Scenario,
     seeds: &[u64],
     options: &RunOptions,
-    progress: &mut Progress,
+    progress: &Mutex<Progress>,
 ) -> ScenarioResult {
-    let RunOptions {
-        delay_s,
-        duration_s,
-        skip_s,
-        keep_trace,
-        calibrated,
-    } = *options;
-    let mut calibrated_delays_s = Vec::new();
     let registry = estimators();
-    let mut scores: Vec<Vec<Metrics>> = registry.iter().map(|_| Vec::new()).collect();
-    let mut bounds = Vec::new();
-    let mut traces = Vec::new();
-    let mut truth_trace = Vec::new();
-    let mut floor_hover = None;
-    let mut true_delay_s = 0.0;
-    for (k, &seed) in seeds.iter().enumerate() {
-        let config = sim_config(scenario, seed, duration_s, delay_s);
-        true_delay_s = config.delay.initial_s;
-        floor_hover.get_or_insert_with(|| noise_floor(&config.sensors, STANDARD_GRAVITY));
-        let events: Vec<SimEvent> = Simulation::new(config.clone())
-            .expect("valid simulation config")
-            .collect();
-        let skip_us = (skip_s * 1e6).round() as u64;
-        let fixes: Vec<(u64, nalgebra::Vector3<f64>)> = events
-            .iter()
-            .filter_map(|e| match e {
-                SimEvent::Gps {
-                    fix,
-                    truth_at_validity,
-                    ..
-                } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
-                _ => None,
-            })
-            .collect();
-        bounds.push(
-            delay_bound_s(
-                &fixes,
-                config.sensors.gps_velocity_var_m2_s2,
-                DELAY_BOUND_WINDOW_US,
-                skip_us,
-            )
-            .unwrap_or(f64::NAN),
-        );
-        let first = k == 0 && keep_trace;
-        if first {
-            truth_trace = events
-                .iter()
-                .filter_map(|e| match e {
-                    SimEvent::Imu { truth, .. } if truth.t_us.is_multiple_of(TRACE_STEP_US) => {
-                        Some((
-                            truth.t_us as f64 * 1e-6,
-                            truth.euler_rad.y.to_degrees(),
-                            truth.gps_delay_s,
-                        ))
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<Option<SeedResult>>> = Mutex::new(seeds.iter().map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..options.threads.clamp(1, seeds.len()) {
+            scope.spawn(|| {
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(&seed) = seeds.get(k) else {
+                        break;
+                    };
+                    let first = k == 0 && options.keep_trace;
+                    let result = run_seed(scenario, seed, first, options, &registry, progress);
+                    if let Ok(mut d) = done.lock() {
+                        d[k] = Some(result);
                     }
-                    _ => None,
-                })
-                .collect();
+                }
+            });
         }
-        let start = if calibrated {
-            let mut cal = config.clone();
-            cal.seed = seed + CALIBRATION_SEED_OFFSET;
-            cal.duration_s = CALIBRATION_DURATION_S;
-            let start = calibrate(&cal);
-            calibrated_delays_s.push(start.delay_s);
-            start
-        } else {
-            UNCALIBRATED_START
-        };
-        let setup = RunSetup {
-            config,
-            events,
-            skip_us,
-            keep_trace: first,
-            start,
-        };
-        for (i, estimator) in registry.iter().enumerate() {
-            let started = Instant::now();
-            let s = (estimator.run)(&setup);
-            progress.step(
-                scenario.name(),
-                seed,
-                estimator.name,
-                started.elapsed().as_secs_f64(),
-            );
-            if first {
-                traces.push((estimator.name, s.trace));
-            }
-            scores[i].push(s.metrics);
+    });
+    let mut per_seed: Vec<SeedResult> = done
+        .into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .map(|r| r.expect("every seed ran"))
+        .collect();
+    let mut by_estimator: Vec<Vec<RunScore>> = registry.iter().map(|_| Vec::new()).collect();
+    let mut bounds = Vec::new();
+    let mut calibrated_delays_s = Vec::new();
+    let truth_trace = std::mem::take(&mut per_seed[0].truth_trace);
+    for seed in per_seed {
+        bounds.push(seed.delay_bound_s);
+        calibrated_delays_s.extend(seed.calibrated_delay_s);
+        for (i, score) in seed.scores.into_iter().enumerate() {
+            by_estimator[i].push(score);
+        }
+    }
+    let config = options.sim_config(scenario, seeds[0]);
+    let mut traces = Vec::new();
+    let mut summaries = Vec::new();
+    let mut consistencies = Vec::new();
+    let mut per_seed = Vec::new();
+    for (estimator, scores) in registry.iter().zip(&mut by_estimator) {
+        let metrics: Vec<Metrics> = scores.iter().map(|s| s.metrics.clone()).collect();
+        summaries.push((estimator.name, summarize(&metrics)));
+        per_seed.push((estimator.name, metrics));
+        consistencies.push((estimator.name, consistency(scores)));
+        if options.keep_trace {
+            traces.push((estimator.name, std::mem::take(&mut scores[0].trace)));
         }
     }
     ScenarioResult {
         scenario,
-        true_delay_s,
+        true_delay_s: config.delay.initial_s,
         delay_bound_s: median(bounds),
-        floor_hover: floor_hover.expect("at least one seed"),
-        summaries: registry
-            .iter()
-            .zip(&scores)
-            .map(|(e, s)| (e.name, summarize(s)))
-            .collect(),
+        floor_hover: noise_floor(&config.sensors, STANDARD_GRAVITY),
+        summaries,
+        consistency: consistencies,
+        per_seed,
         traces,
         truth_trace,
         calibrated_delays_s,
@@ -1051,6 +1674,28 @@ struct RunOptions {
     keep_trace: bool,
     /// Start the delay estimators from an offline calibration.
     calibrated: bool,
+    /// Seeds run at once.
+    threads: usize,
+    /// GPS rate, Hz, when not the default (sweeps).
+    gps_rate_hz: Option<f64>,
+    /// IMU rate, Hz, when not the default (sweeps).
+    imu_rate_hz: Option<f64>,
+}
+
+impl RunOptions {
+    /// The simulation of one scenario and seed with these options.
+    fn sim_config(&self, scenario: Scenario, seed: u64) -> SimConfig {
+        let mut config = sim_config(scenario, seed, self.duration_s, self.delay_s);
+        if let Some(r) = self.gps_rate_hz {
+            config.sensors.gps_rate_hz = r;
+        }
+        if let Some(r) = self.imu_rate_hz {
+            config.sensors.imu_rate_hz = r;
+            // The magnetometer cannot outrun the IMU (100 Hz by default).
+            config.sensors.mag_rate_hz = config.sensors.mag_rate_hz.min(r);
+        }
+        config
+    }
 }
 
 /// Progress on stderr: one line per estimator run.
@@ -1109,12 +1754,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
+    if args.delay_suite {
+        let options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        let rows = delay_suite::run(&options);
+        if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let json = delay_suite::to_json(&rows, &options);
+        std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
+        eprintln!("wrote {}", args.json.display());
+        return Ok(());
+    }
     let seeds: Vec<u64> = (args.seed..args.seed + seeds_n).collect();
-    let mut progress = Progress {
+    let progress = Mutex::new(Progress {
         done: 0,
         total: scenarios.len() * seeds.len() * estimators().len(),
         started: Instant::now(),
-    };
+    });
     if let Some(dir) = &args.csv {
         for &scenario in &scenarios {
             let config = sim_config(scenario, seeds[0], duration_s, args.delay);
@@ -1129,10 +1785,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         skip_s: args.skip,
         keep_trace: plots.is_some(),
         calibrated: !args.no_calibration,
+        threads: args.threads.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
+        }),
+        gps_rate_hz: None,
+        imu_rate_hz: None,
     };
+    if let Some(name) = args.sweep {
+        return sweep::run(name, &scenarios, &seeds, options, &args.json, plots);
+    }
     let results: Vec<ScenarioResult> = scenarios
         .iter()
-        .map(|&s| run_scenario(s, &seeds, &options, &mut progress))
+        .map(|&s| run_scenario(s, &seeds, &options, &progress))
         .collect();
     print!(
         "{}",

@@ -363,11 +363,11 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         self.attitude = Some(q);
         self.last_imu_us = Some(imu.t_us);
         let (x_hist, y_hist, sums, s) = (&mut self.x, &self.y, &mut self.sums, self.max_shift);
+        // Cannot fail: `admit_sample` refused timestamps beyond the grid's range.
         self.imu_grid.push(imu.t_us, a_nav, &mut |i, x| {
             x_hist.push(i, x);
             add_pairs(sums, s, y_hist, i, x, Stream::Imu);
-        });
-        Ok(())
+        })
     }
 
     /// One GPS fix, in time order with the IMU samples. Refused, state

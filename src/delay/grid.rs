@@ -154,15 +154,17 @@ impl<T: Scalar> ImuToGrid<T> {
         self.grid.reset();
     }
 
-    /// Adds one sample; emits smoothed grid samples `(j, x_j)`.
+    /// Adds one sample; emits smoothed grid samples `(j, x_j)`. Refused,
+    /// state unchanged: `t_us` beyond [`MAX_GRID_TIME_US`] (the bin and grid
+    /// arithmetic would overflow).
     pub(crate) fn push(
         &mut self,
         t_us: u64,
         a: Vector3<T>,
         emit: &mut impl FnMut(u64, Vector3<T>),
-    ) {
+    ) -> Result<(), Error> {
         let p = self.period_us;
-        let index = (t_us + p / 2) / p;
+        let index = grid_index(t_us, p)?;
         let offset = t_us as i64 - (index * p) as i64;
         match &mut self.bin {
             Some((b, sum, off, n)) if *b == index => {
@@ -179,7 +181,29 @@ impl<T: Scalar> ImuToGrid<T> {
                 *open = Some((index, a, offset, 1));
             }
         }
+        Ok(())
     }
+}
+
+/// Largest timestamp the correlation grid accepts, us (an eighth of `u64`,
+/// about 73 000 years): bin centres, grid times, their signed differences
+/// (`i64`) and the shift offsets of negative delays then stay far from
+/// overflow.
+pub const MAX_GRID_TIME_US: u64 = u64::MAX / 8;
+
+/// The grid bin `round(t / Tc)` of `t_us`, with checked arithmetic: refused
+/// beyond [`MAX_GRID_TIME_US`].
+pub(crate) fn grid_index(t_us: u64, period_us: u64) -> Result<u64, Error> {
+    let refuse = Error::OutOfRange {
+        field: "delay.t_us",
+        reason: "timestamp beyond MAX_GRID_TIME_US",
+    };
+    if t_us > MAX_GRID_TIME_US || period_us == 0 {
+        return Err(refuse);
+    }
+    t_us.checked_add(period_us / 2)
+        .map(|t| t / period_us)
+        .ok_or(refuse)
 }
 
 /// GPS side: velocity differences over `n` fixes at the span's midpoint,
@@ -231,6 +255,17 @@ pub(crate) fn grid_period_us<T: Scalar>(rate_hz: T) -> u64 {
 /// A duration `>= 0` in grid samples, rounded to nearest.
 pub(crate) fn grid_samples<T: Scalar>(seconds: T, period_us: u64) -> usize {
     (seconds.as_f64() * 1e6 / period_us as f64 + 0.5) as usize
+}
+
+/// A duration of either sign in grid samples, rounded to nearest.
+pub(crate) fn signed_grid_samples<T: Scalar>(seconds: T, period_us: u64) -> i64 {
+    let samples = seconds.as_f64() * 1e6 / period_us as f64;
+    // `f64::round` needs std: round half away from zero by hand.
+    if samples >= 0.0 {
+        (samples + 0.5) as i64
+    } else {
+        -((-samples + 0.5) as i64)
+    }
 }
 
 /// How far, in grid samples, the IMU grid stream can run ahead of the GPS
@@ -297,7 +332,7 @@ pub const MAX_INPUT_MAGNITUDE: f64 = 1e4;
 
 /// Admits one sample of a stream before any state changes: finite values
 /// (`field` names them) within [`MAX_INPUT_MAGNITUDE`] and a strictly
-/// increasing time. Returns whether the
+/// increasing time no later than [`MAX_GRID_TIME_US`]. Returns whether the
 /// gap since the previous sample exceeds `max_gap_s` (the caller restarts
 /// its resampling).
 pub(crate) fn admit_sample<T: Scalar>(
@@ -315,6 +350,12 @@ pub(crate) fn admit_sample<T: Scalar>(
         return Err(Error::OutOfRange {
             field,
             reason: "component magnitude above MAX_INPUT_MAGNITUDE",
+        });
+    }
+    if t_us > MAX_GRID_TIME_US {
+        return Err(Error::OutOfRange {
+            field: "delay.t_us",
+            reason: "timestamp beyond MAX_GRID_TIME_US",
         });
     }
     check_time(stream, previous_us, t_us)?;
@@ -352,7 +393,8 @@ mod tests {
                 let t = t_us as f64 * 1e-6;
                 imu.push(t_us, Vector3::repeat(c * t), &mut |j, v| {
                     x.insert(j, v[0]);
-                });
+                })
+                .unwrap();
             }
             for k in 1..300u64 {
                 let t_us = (1_000_000 + k as i64 * 200_000 + jitter(20_000)) as u64;
@@ -373,6 +415,35 @@ mod tests {
         }
     }
 
+    /// Timestamps near `u64::MAX` are refused with a typed error instead of
+    /// overflowing `t + Tc/2` (a panic in debug builds).
+    #[test]
+    fn timestamps_near_u64_max_are_refused() {
+        let mut imu = ImuToGrid::<f64>::new(20_000, 1.0);
+        for t_us in [u64::MAX, u64::MAX - 5_000, MAX_GRID_TIME_US + 1] {
+            let r = imu.push(t_us, Vector3::zeros(), &mut |_, _| {
+                panic!("nothing emitted")
+            });
+            assert!(
+                matches!(
+                    r,
+                    Err(Error::OutOfRange {
+                        field: "delay.t_us",
+                        ..
+                    })
+                ),
+                "{r:?}"
+            );
+        }
+        assert!(imu.bin.is_none());
+        imu.push(MAX_GRID_TIME_US, Vector3::zeros(), &mut |_, _| {})
+            .unwrap();
+        assert_eq!(grid_index(u64::MAX, 20_000).ok(), None);
+        assert_eq!(grid_index(30_000, 20_000).ok(), Some(2));
+        let refused = admit_sample("imu", "a", &Vector3::<f32>::zeros(), None, u64::MAX, 0.1);
+        assert!(matches!(refused, Err(Error::OutOfRange { .. })));
+    }
+
     /// Each grid index is emitted once, in order, without gaps.
     #[test]
     fn grid_indices_are_consecutive() {
@@ -386,7 +457,8 @@ mod tests {
                     assert_eq!(j, l + 1);
                 }
                 last = Some(j);
-            });
+            })
+            .unwrap();
         }
         assert!(last.unwrap() > 90);
     }

@@ -88,7 +88,7 @@ pub use correlation::{AxisPeak, PENDING_GPS_SAMPLES, SlidingCorrelator};
 pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
-pub use grid::{MAX_GPS_DIFF_SPAN, MAX_INPUT_MAGNITUDE};
+pub use grid::{MAX_GPS_DIFF_SPAN, MAX_GRID_TIME_US, MAX_INPUT_MAGNITUDE};
 
 use nalgebra::Vector3;
 
@@ -97,7 +97,7 @@ use crate::scalar::Scalar;
 use crate::sensors::GpsFix;
 use grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
-    non_negative_finite, positive_finite, validate_grid,
+    non_negative_finite, positive_finite, signed_grid_samples, validate_grid,
 };
 
 /// Per-sensor pure delays of eq. (15), seconds.
@@ -181,13 +181,26 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// 0 disables the scaling.
     pub reference_accel_variance_m2_s4: T,
     /// Re-acquisition threshold, in standard deviations `sqrt(P + R_i)`: when
-    /// at least two axes are valid and all of them disagree with the estimate
-    /// beyond it, on the same side, for `reacquire_after_s`, the estimate
-    /// restarts from their mean. 0 disables.
+    /// every valid axis (at least one) disagrees with the estimate beyond it,
+    /// on the same side, for `reacquire_after_s`, the estimate restarts from
+    /// their mean and follows the per-window measurements until they settle
+    /// (see [`DelayStatus::Acquiring`]). 0 disables.
     pub reacquire_sigma: T,
     /// How long the disagreement must last before re-acquiring, s.
     pub reacquire_after_s: T,
-    /// Gain fusion, delay range (= the shift window) and initial delay.
+    /// A standard deviation at or below which the estimate starts locked, s
+    /// (e.g. an offline calibration); a less certain start acquires first.
+    pub lock_std_s: T,
+    /// Acquisition: the window estimate must stay within this many of its
+    /// standard deviations of the previous one ...
+    pub acquire_sigma: T,
+    /// ... for this long before the loop locks, s.
+    pub lock_after_s: T,
+    /// How long the correlation peaks of the moving axes must sit on one edge
+    /// of the range before the status reports the delay out of range, s.
+    pub out_of_range_after_s: T,
+    /// Gain fusion, delay range (= the shift window, either sign) and
+    /// initial delay.
     pub fusion: GainFusionConfig<T>,
 }
 
@@ -206,8 +219,12 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             process_noise_ms2_per_s: T::lit(4.2),
             measurement_noise_ms2: [T::lit(1600.0); AXES],
             reference_accel_variance_m2_s4: T::lit(9.0),
-            reacquire_sigma: T::lit(3.0),
-            reacquire_after_s: T::lit(2.0),
+            reacquire_sigma: T::lit(2.0),
+            reacquire_after_s: T::lit(1.0),
+            lock_std_s: T::lit(0.03),
+            acquire_sigma: T::lit(1.0),
+            lock_after_s: T::lit(1.0),
+            out_of_range_after_s: T::lit(2.0),
             fusion: GainFusionConfig::default(),
         }
     }
@@ -221,9 +238,48 @@ struct GridSizes {
     shift_min: usize,
     lags: usize,
     lead: usize,
+    /// Grid samples the GPS stream is shifted later so that a negative
+    /// delay becomes a shift `>= 0`.
+    offset: usize,
 }
 
 impl<T: Scalar> DelayLoopConfig<T> {
+    /// This configuration adapted to a GPS delivering `gps_rate_hz` fixes per
+    /// second (1 to 20 Hz), within the capacities of [`DefaultDelayLoop`]:
+    ///
+    /// - gap limit `max_gps_gap_s = 2.2 / rate` (a fix lost is tolerated,
+    ///   two are a gap);
+    /// - below 5 Hz: the GPS difference spans one fix interval
+    ///   (`gps_diff_span = 1`) and the correlation grid runs at 25 Hz, so the
+    ///   IMU history still holds the buffer, the shifts and the longer lead
+    ///   of the IMU stream over the GPS one;
+    /// - the smoothing of both accelerations follows the rate,
+    ///   `min(1 Hz, rate / 2.5)`: the GPS difference is already the mean
+    ///   acceleration over its span (a box of `n / rate` seconds, then the
+    ///   interpolation's triangle), and the IMU side must see the same
+    ///   averaging for the correlation peak to stay high; a common low-pass
+    ///   near `rate / n` dominates both;
+    /// - the buffer holds at least 10 fix intervals: `max(5 s, 10 / rate)`
+    ///   (at most 10 s).
+    ///
+    /// Refused: a rate outside 1-20 Hz or not finite.
+    pub fn adapted_to_gps_rate(mut self, gps_rate_hz: T) -> Result<Self, Error> {
+        if !(gps_rate_hz.is_finite() && gps_rate_hz >= T::one() && gps_rate_hz <= T::lit(20.0)) {
+            return Err(Error::OutOfRange {
+                field: "gps_rate_hz",
+                reason: "must be 1 to 20 Hz",
+            });
+        }
+        let slow = gps_rate_hz < T::lit(5.0);
+        self.max_gps_gap_s = T::lit(2.2) / gps_rate_hz;
+        self.gps_diff_span = if slow { 1 } else { 2 };
+        self.correlation_rate_hz = T::lit(if slow { 25.0 } else { 50.0 });
+        self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
+        self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
+        self.validate()?;
+        Ok(self)
+    }
+
     /// Checks every field (the sizes against the const capacities are checked
     /// by [`DelayLoop::new`]).
     pub fn validate(&self) -> Result<(), Error> {
@@ -266,21 +322,33 @@ impl<T: Scalar> DelayLoopConfig<T> {
                 "sigma must be finite and >= 0, duration positive",
             );
         }
-        self.fusion.validate()?;
-        if self.fusion.delay_min_s < T::zero() {
+        if !(positive(self.lock_std_s)
+            && non_negative_finite(self.acquire_sigma)
+            && non_negative_finite(self.lock_after_s)
+            && non_negative_finite(self.out_of_range_after_s))
+        {
             return bad(
-                "fusion.delay_min_s",
-                "the shift window starts at a delay >= 0",
+                "acquisition",
+                "lock_std_s must be positive, the others finite and >= 0",
             );
         }
+        self.fusion.validate()?;
         let period_us = grid_period_us(self.correlation_rate_hz);
-        let shift_min = grid_samples(self.fusion.delay_min_s, period_us);
-        let shift_max = grid_samples(self.fusion.delay_max_s, period_us);
+        let shift_lo = signed_grid_samples(self.fusion.delay_min_s, period_us);
+        let shift_hi = signed_grid_samples(self.fusion.delay_max_s, period_us);
+        let offset = usize::try_from(-shift_lo.min(0)).unwrap_or(usize::MAX);
+        if offset > PENDING_GPS_SAMPLES / 2 {
+            return bad(
+                "fusion.delay_min_s",
+                "a negative delay may reach PENDING_GPS_SAMPLES / 2 grid samples",
+            );
+        }
         Ok(GridSizes {
             period_us,
             buffer_len: grid_samples(self.buffer_s, period_us),
-            shift_min,
-            lags: shift_max.saturating_sub(shift_min) + 1,
+            shift_min: usize::try_from(shift_lo + offset as i64).unwrap_or(0),
+            lags: usize::try_from(shift_hi - shift_lo + 1).unwrap_or(0),
+            offset,
             lead: lead_samples(
                 self.gps_diff_span,
                 self.max_gps_gap_s,
@@ -319,8 +387,81 @@ pub struct DelayUpdate<T: Scalar> {
     /// True when this update re-acquired the delay (see
     /// [`DelayLoopConfig::reacquire_sigma`]).
     pub reacquired: bool,
+    /// The loop's status after this update.
+    pub status: DelayStatus<T>,
     /// North, east, down.
     pub axes: [AxisUpdate<T>; AXES],
+}
+
+/// What the loop can say about the delay (see [`DelayLoop::status`]).
+///
+/// The navigator, or the user, reads it to know whether [`DelayLoop::delay_s`]
+/// is an estimate (`Locked`), a provisional value (`Acquiring`), or the
+/// start value the motion has not yet allowed to estimate; and whether the
+/// true delay lies outside the configured range, which the loop never
+/// clamps silently.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum DelayStatus<T: Scalar> {
+    /// The correlation buffer is not full yet (start, or after a gap in a
+    /// stream): the estimate is the start value.
+    WaitingForData,
+    /// Not locked, and no axis of the last window moved enough (or
+    /// correlated well enough) to measure the delay.
+    WaitingForMotion,
+    /// Following the per-window correlation peaks (the coarse search over
+    /// the whole range) until they settle.
+    Acquiring,
+    /// Locked: the gain fusion refines the estimate (it holds it when the
+    /// motion stops).
+    Locked,
+    /// For [`DelayLoopConfig::out_of_range_after_s`], the correlation of every
+    /// moving axis peaked at the smallest delay of the range: the delay is
+    /// below `edge_s`. The estimate is not moved there.
+    BelowRange {
+        /// The range's lower edge, s.
+        edge_s: T,
+        /// The largest peak value (normalized correlation) seen at the edge.
+        peak: T,
+    },
+    /// As [`DelayStatus::BelowRange`], at the largest delay of the range.
+    AboveRange {
+        /// The range's upper edge, s.
+        edge_s: T,
+        /// The largest peak value (normalized correlation) seen at the edge.
+        peak: T,
+    },
+}
+
+impl<T: Scalar> DelayStatus<T> {
+    /// True when the delay is estimated (`Locked`).
+    pub fn is_locked(&self) -> bool {
+        matches!(self, DelayStatus::Locked)
+    }
+
+    /// True when the delay lies outside the configured range.
+    pub fn is_out_of_range(&self) -> bool {
+        matches!(
+            self,
+            DelayStatus::BelowRange { .. } | DelayStatus::AboveRange { .. }
+        )
+    }
+}
+
+/// Time constant of the innovation match that scales the reported sigma, s
+/// (two independent 5 s buffers; the first valid window sets it).
+pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
+
+/// Smallest squared scale of the reported sigma (the scale never exceeds 1:
+/// it only removes the pessimism of the noise model).
+pub const SIGMA_SCALE2_MIN: f64 = 0.01;
+
+/// Peaks of moving axes sitting on one edge of the shift window.
+#[derive(Debug, Clone, Copy)]
+struct EdgeRun<T: Scalar> {
+    since_us: u64,
+    below: bool,
+    peak: T,
 }
 
 /// The online delay estimation loop: IMU NED acceleration and GPS velocity
@@ -372,11 +513,22 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     last_update_us: Option<u64>,
     disagreeing_since_us: Option<u64>,
     restarts: u32,
+    offset_samples: u64,
+    shift_min: usize,
+    innovation_ratio: T,
+    innovations_matched: bool,
+    locked: bool,
+    following: bool,
+    stable_since_us: Option<u64>,
+    edge: Option<EdgeRun<T>>,
+    status: DelayStatus<T>,
 }
 
 /// A loop sized for the default configuration: 50 Hz grid, 5 s buffer
-/// (250 samples), shifts 0 to 1 s (51), and 384 samples of IMU history.
-pub type DefaultDelayLoop<T> = DelayLoop<T, 250, 51, 384>;
+/// (250 samples), up to 61 shifts (a range 1.2 s wide, e.g. the default
+/// 0 to 1 s, or -0.5 to 0.6 s), and 384 samples of IMU history. The work
+/// per fix follows the configured range, not this capacity.
+pub type DefaultDelayLoop<T> = DelayLoop<T, 250, 61, 384>;
 
 impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     DelayLoop<T, BUF, LAGS, HIST>
@@ -408,7 +560,21 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             last_update_us: None,
             disagreeing_since_us: None,
             restarts: 0,
+            offset_samples: sizes.offset as u64,
+            shift_min: sizes.shift_min,
+            innovation_ratio: T::one(),
+            innovations_matched: false,
+            locked: config.fusion.initial_std_s <= config.lock_std_s,
+            following: false,
+            stable_since_us: None,
+            edge: None,
+            status: DelayStatus::WaitingForData,
         })
+    }
+
+    /// What the loop can say about the delay now ([`DelayStatus`]).
+    pub fn status(&self) -> DelayStatus<T> {
+        self.status
     }
 
     /// The configuration.
@@ -421,9 +587,24 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.fusion.delay_s()
     }
 
-    /// Standard deviation of the estimate as the GFA sees it, s.
+    /// Standard deviation of the estimate, s: the GFA's `sqrt(P)` scaled by
+    /// the innovation match (see [`SIGMA_MATCH_TIME_S`]) once locked, so
+    /// that it describes the errors the loop actually makes rather than its
+    /// noise model's.
     pub fn delay_std_s(&self) -> T {
-        self.fusion.variance_s2().sqrt()
+        (self.fusion.variance_s2() * self.sigma_scale2()).sqrt()
+    }
+
+    /// The squared scale applied to the GFA's variance: the mean normalized
+    /// innovation squared while locked (1 before), within
+    /// `[SIGMA_SCALE2_MIN, 1]`.
+    fn sigma_scale2(&self) -> T {
+        if self.locked && !self.following {
+            self.innovation_ratio
+                .clamp(T::lit(SIGMA_SCALE2_MIN), T::one())
+        } else {
+            T::one()
+        }
     }
 
     /// Eq. (15) for the current estimate and the whitening filters' group
@@ -448,9 +629,16 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     }
 
     /// Restarts the estimate from `delay_s` with standard deviation `std_s`
-    /// (e.g. the offline calibration's result). State unchanged on error.
+    /// (e.g. the offline calibration's result): locked when `std_s` is at
+    /// most [`DelayLoopConfig::lock_std_s`], else acquiring. State unchanged
+    /// on error.
     pub fn set_delay(&mut self, delay_s: T, std_s: T) -> Result<(), Error> {
-        self.fusion.reset(delay_s, std_s)
+        self.fusion.reset(delay_s, std_s)?;
+        self.locked = std_s <= self.config.lock_std_s;
+        self.following = false;
+        self.stable_since_us = None;
+        self.disagreeing_since_us = None;
+        Ok(())
     }
 
     /// Feeds the forward-reckoned NED acceleration `a_fwd` (m/s^2, gravity
@@ -471,8 +659,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.restarts += 1;
         }
         let correlator = &mut self.correlator;
+        // Cannot fail: `admit_sample` refused timestamps beyond the grid's range.
         self.imu_grid
-            .push(t_us, accel_ned_m_s2, &mut |j, x| correlator.push_x(j, x));
+            .push(t_us, accel_ned_m_s2, &mut |j, x| correlator.push_x(j, x))?;
         self.last_imu_us = Some(t_us);
         Ok(())
     }
@@ -500,9 +689,10 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.correlator.reset_pairs();
             self.restarts += 1;
         }
-        let correlator = &mut self.correlator;
-        self.gps_grid
-            .push(t_us, velocity_ned_m_s, &mut |j, y| correlator.push_y(j, y));
+        let (correlator, offset) = (&mut self.correlator, self.offset_samples);
+        self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
+            correlator.push_y(j + offset, y)
+        });
         self.last_gps_us = Some(t_us);
         self.fixes_since_update += 1;
         if self.fixes_since_update < self.config.fixes_per_update {
@@ -510,17 +700,20 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         }
         self.fixes_since_update = 0;
         let Some(peaks) = self.correlator.peaks() else {
+            self.status = DelayStatus::WaitingForData;
             return Ok(None);
         };
+        let offset_s = T::lit(self.offset_samples as f64) * self.period_s;
         let mut z = [T::zero(); AXES];
         let mut valid = [false; AXES];
         for axis in 0..AXES {
             let p = &peaks[axis];
-            z[axis] = p.shift_samples * self.period_s;
+            z[axis] = p.shift_samples * self.period_s - offset_s;
             valid[axis] = p.interior
                 && p.peak >= self.config.min_peak
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4;
         }
+        self.track_edges(t_us, &peaks, &valid);
         let buffer_s = self.config.buffer_s;
         let dt_s = self
             .last_update_us
@@ -539,21 +732,175 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         });
         let q_s2 = self.config.process_noise_ms2_per_s * ms2 * dt_s;
         let r_s2 = r_buffer_s2.map(|r| r * buffer_s / dt_s);
-        let reacquired = self.reacquire(t_us, &z, &valid, &r_buffer_s2);
-        let step = self.fusion.step(z, valid, q_s2, r_s2)?;
+        self.match_innovations(dt_s, q_s2, &z, &valid, &r_buffer_s2);
+        let reacquired = !self.following && self.reacquire(t_us, &z, &valid, &r_buffer_s2);
+        let gains = if self.following {
+            self.follow(t_us, &z, &valid, &r_buffer_s2)
+        } else {
+            let gains = self.fusion.step(z, valid, q_s2, r_s2)?.gains;
+            let lock = self.config.lock_std_s;
+            self.locked |= valid.iter().any(|&v| v) && self.fusion.variance_s2() <= lock * lock;
+            gains
+        };
         self.last_update_us = Some(t_us);
+        self.status = match self.edge {
+            Some(run)
+                if T::lit((t_us - run.since_us) as f64 * 1e-6)
+                    >= self.config.out_of_range_after_s =>
+            {
+                let range = &self.config.fusion;
+                if run.below {
+                    DelayStatus::BelowRange {
+                        edge_s: range.delay_min_s,
+                        peak: run.peak,
+                    }
+                } else {
+                    DelayStatus::AboveRange {
+                        edge_s: range.delay_max_s,
+                        peak: run.peak,
+                    }
+                }
+            }
+            _ if self.locked => DelayStatus::Locked,
+            _ if valid.iter().any(|&v| v) => DelayStatus::Acquiring,
+            _ => DelayStatus::WaitingForMotion,
+        };
         Ok(Some(DelayUpdate {
             t_us,
-            delay_s: step.delay_s,
-            delay_std_s: step.variance_s2.sqrt(),
+            delay_s: self.fusion.delay_s(),
+            delay_std_s: self.delay_std_s(),
             reacquired,
+            status: self.status,
             axes: core::array::from_fn(|axis| AxisUpdate {
                 valid: valid[axis],
                 measured_delay_s: z[axis],
-                gain: step.gains[axis],
+                gain: gains[axis],
                 correlation: peaks[axis],
             }),
         }))
+    }
+
+    /// Covariance matching: the running mean, over [`SIGMA_MATCH_TIME_S`],
+    /// of the valid axes' squared innovations `(z_i - tau)^2` divided by their
+    /// predicted variance `P + Q + R_i` (one buffer's `R_i`: successive
+    /// windows share their data, so one window is one measurement of that
+    /// variance). Only while locked.
+    fn match_innovations(
+        &mut self,
+        dt_s: T,
+        q_s2: T,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) {
+        if !self.locked || self.following {
+            return;
+        }
+        let tau = self.fusion.delay_s();
+        let p = self.fusion.variance_s2() + q_s2;
+        let (mut sum, mut n) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let e = z[axis] - tau;
+            sum += e * e / (p + r_buffer_s2[axis]);
+            n += T::one();
+        }
+        if n > T::zero() {
+            let alpha = if self.innovations_matched {
+                (dt_s / T::lit(SIGMA_MATCH_TIME_S)).min(T::one())
+            } else {
+                T::one()
+            };
+            self.innovations_matched = true;
+            self.innovation_ratio += alpha * (sum / n - self.innovation_ratio);
+        }
+    }
+
+    /// Re-acquisition after a step (see [`DelayLoop::reacquire`]): the
+    /// correlation searches the whole range, so the estimate jumps to each
+    /// window's measurement, the mean of the valid axes weighted by
+    /// `1 / R_i`, with that mean's variance. Once successive window
+    /// measurements have stayed within [`DelayLoopConfig::acquire_sigma`] of
+    /// their standard deviation for [`DelayLoopConfig::lock_after_s`], the
+    /// loop locks again and the gain fusion keeps the final word. Returns the
+    /// weights used (as gains).
+    fn follow(
+        &mut self,
+        t_us: u64,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) -> [T; AXES] {
+        let mut gains = [T::zero(); AXES];
+        let (mut weight, mut weighted) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let w = T::one() / r_buffer_s2[axis];
+            weight += w;
+            weighted += w * z[axis];
+        }
+        if weight <= T::zero() {
+            self.stable_since_us = None;
+            return gains;
+        }
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            gains[axis] = T::one() / (r_buffer_s2[axis] * weight);
+        }
+        let mean = weighted / weight;
+        let variance = T::one() / weight;
+        let agrees =
+            (mean - self.fusion.delay_s()).abs() <= self.config.acquire_sigma * variance.sqrt();
+        let since = match self.stable_since_us {
+            Some(since) if agrees => since,
+            _ => t_us,
+        };
+        self.stable_since_us = Some(since);
+        if self.fusion.reset(mean, variance.sqrt()).is_ok()
+            && T::lit((t_us - since) as f64 * 1e-6) >= self.config.lock_after_s
+        {
+            self.locked = true;
+            self.following = false;
+            self.stable_since_us = None;
+        }
+        gains
+    }
+
+    /// Follows the peaks of the axes that move (IMU variance above the
+    /// threshold, peak value above `min_peak`) but are not valid because
+    /// they sit on an edge of the shift window: when no axis is valid and
+    /// all such axes sit on the same edge, the run continues.
+    fn track_edges(&mut self, t_us: u64, peaks: &[AxisPeak<T>; AXES], valid: &[bool; AXES]) {
+        let lower_edge = T::lit(self.shift_min as f64);
+        let (mut below, mut above, mut peak) = (0usize, 0usize, T::zero());
+        for p in peaks.iter().filter(|p| {
+            !p.interior
+                && p.peak >= self.config.min_peak
+                && p.accel_variance >= self.config.min_accel_variance_m2_s4
+        }) {
+            if p.shift_samples <= lower_edge {
+                below += 1;
+            } else {
+                above += 1;
+            }
+            peak = peak.max(p.peak);
+        }
+        let edge_below = match (valid.iter().any(|&v| v), below, above) {
+            (false, b, 0) if b > 0 => Some(true),
+            (false, 0, a) if a > 0 => Some(false),
+            (true, ..) => None,
+            // Mixed edges, or nothing moving: keep the run as it is.
+            _ => return,
+        };
+        self.edge = match (edge_below, self.edge) {
+            (None, _) => None,
+            (Some(b), Some(run)) if run.below == b => Some(EdgeRun {
+                peak: run.peak.max(peak),
+                ..run
+            }),
+            (Some(b), _) => Some(EdgeRun {
+                since_us: t_us,
+                below: b,
+                peak,
+            }),
+        };
     }
 
     /// Re-acquisition (see [`DelayLoopConfig::reacquire_sigma`]): restarts the
@@ -588,7 +935,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 below += 1;
             }
         }
-        if count < 2 || (above != count && below != count) {
+        if count == 0 || (above != count && below != count) {
             self.disagreeing_since_us = None;
             return false;
         }
@@ -598,10 +945,18 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         }
         self.disagreeing_since_us = None;
         let n = T::lit(count as f64);
-        // The mean of `count` measurements of variance mean(R_i): variance mean(R) / count.
-        self.fusion
+        // The mean of `count` measurements of variance mean(R_i): variance
+        // mean(R) / count; the loop acquires again from there.
+        let restarted = self
+            .fusion
             .reset(z_sum / n, (r_sum / (n * n)).sqrt())
-            .is_ok()
+            .is_ok();
+        if restarted {
+            self.locked = false;
+            self.following = true;
+            self.stable_since_us = None;
+        }
+        restarted
     }
 
     /// [`DelayLoop::push_gps`] for any [`GpsFix`].

@@ -17,12 +17,13 @@
 //! - **refusals per sensor and reason**: the navigator's own
 //!   ([`NavRefusals`]) and the horizon EKF's
 //!   ([`RefusalCounters`]: gates, GPS resets).
-//! - **the delay status** ([`DelayStatus`]): filled from what the delay loop
+//! - **the delay status** ([`DelayHealth`], with the loop's [`DelayStatus`]): filled from what the delay loop
 //!   exposes today (estimate, standard deviation, validity of the last
 //!   update's axes); a richer status from the loop (waiting for motion,
 //!   outside its range) is meant to replace `last_valid_axes`.
 
 use super::NavRefusals;
+use crate::delay::DelayStatus;
 use crate::ekf16::{GpsReset, RefusalCounters};
 use crate::scalar::Scalar;
 
@@ -76,10 +77,10 @@ pub struct ResetRecord {
     pub cause: ResetCause,
 }
 
-/// The delay estimate's status.
+/// The delay estimate as the navigator uses it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct DelayStatus<T: Scalar> {
+pub struct DelayHealth<T: Scalar> {
     /// True when the delay is estimated online, false when fixed.
     pub estimated: bool,
     /// The delay, s.
@@ -91,6 +92,9 @@ pub struct DelayStatus<T: Scalar> {
     pub last_valid_axes: Option<[bool; 3]>,
     /// Loop updates with at least one valid axis so far.
     pub valid_updates: u32,
+    /// The delay loop's own status (acquiring, locked, waiting for motion,
+    /// below or above its range); `None` in fixed mode.
+    pub status: Option<DelayStatus<T>>,
 }
 
 /// What the navigator can vouch for at the present (module docs).
@@ -118,5 +122,5 @@ pub struct Health<T: Scalar> {
     /// The horizon EKF's refusals, gates and resets.
     pub ekf_refusals: RefusalCounters,
     /// The delay's status.
-    pub delay: DelayStatus<T>,
+    pub delay: DelayHealth<T>,
 }

@@ -105,7 +105,7 @@ pub mod health;
 mod timeline;
 
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
-pub use health::{AlignmentState, DelayStatus, Health, ResetCause, ResetRecord};
+pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 
 use crate::delay::ring::Ring;
 use crate::delay::{
@@ -571,16 +571,18 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             heading_valid: aligned && recent(mag_fused, HEADING_STALE_US),
             velocity_valid: aligned && gps_recent && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
             position_valid: aligned && gps_recent && horizontal_std <= T::lit(MAX_POSITION_STD_M),
-            delay_valid: !estimated || self.valid_delay_updates > 0,
+            delay_valid: !estimated
+                || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
             last_reset: self.last_reset,
             refusals: self.refusals,
             ekf_refusals: self.ekf.refusals(),
-            delay: DelayStatus {
+            delay: DelayHealth {
                 estimated,
                 delay_s: self.delay_s(),
                 delay_std_s: self.delay_std_s(),
                 last_valid_axes: self.last_update.map(|u| u.axes.map(|a| a.valid)),
                 valid_updates: self.valid_delay_updates,
+                status: estimated.then(|| self.delay_loop.status()),
             },
         }
     }

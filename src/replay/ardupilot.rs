@@ -183,26 +183,64 @@ impl VelocityColumns {
                 course,
                 down,
             } => {
-                let (s, c) = (number(rec, speed)?, number(rec, course)?.to_radians());
-                Ok(Vector3::new(s * c.cos(), s * c.sin(), number(rec, down)?))
+                let (s, c) = (number(rec, speed)?, number(rec, course)?);
+                Ok(ned_from_speed_course(s, c, number(rec, down)?))
             }
         }
     }
 }
 
-/// One row of `gps_accuracy.csv`.
-#[derive(Clone, Copy)]
-struct Accuracy {
-    t_us: u64,
-    horizontal_m: f64,
-    vertical_m: f64,
+/// NED velocity from ground speed (m/s), course over ground (deg, clockwise
+/// from true north) and vertical velocity (m/s, down positive):
+/// `v_n = speed cos(course)`, `v_e = speed sin(course)`.
+pub(crate) fn ned_from_speed_course(
     speed_m_s: f64,
+    course_deg: f64,
+    down_m_s: f64,
+) -> Vector3<f64> {
+    let c = course_deg.to_radians();
+    Vector3::new(speed_m_s * c.cos(), speed_m_s * c.sin(), down_m_s)
+}
+
+/// One row of `gps_accuracy.csv` (or one receiver-accuracy record of a
+/// DataFlash log).
+#[derive(Clone, Copy)]
+pub(crate) struct Accuracy {
+    pub(crate) t_us: u64,
+    pub(crate) horizontal_m: f64,
+    pub(crate) vertical_m: f64,
+    pub(crate) speed_m_s: f64,
+}
+
+impl Accuracy {
+    /// The accuracy from the horizontal, vertical and speed values; a
+    /// non-positive one is `OutOfRange`.
+    pub(crate) fn new(t_us: u64, values: Vector3<f64>) -> Result<Self, SkipKind> {
+        if values.iter().any(|&a| a <= 0.0) {
+            return Err(SkipKind::OutOfRange);
+        }
+        Ok(Self {
+            t_us,
+            horizontal_m: values.x,
+            vertical_m: values.y,
+            speed_m_s: values.z,
+        })
+    }
+
+    /// The three accuracies as a GPS row holds them.
+    pub(crate) fn as_row(self) -> [Option<f64>; 3] {
+        [
+            Some(self.horizontal_m),
+            Some(self.vertical_m),
+            Some(self.speed_m_s),
+        ]
+    }
 }
 
 /// The streaming join of `gps_accuracy.csv` to the fixes: the accuracy rows
 /// just before and just after the fix time are held, the nearest one within
 /// [`ACCURACY_JOIN_WINDOW_US`] is used.
-struct AccuracyJoin {
+pub(crate) struct AccuracyJoin {
     stream: RowStream<AccuracyRow>,
     before: Option<Accuracy>,
     after: Option<Accuracy>,
@@ -210,7 +248,7 @@ struct AccuracyJoin {
 }
 
 /// Wrapper so an accuracy row can go through [`RowStream`].
-struct AccuracyRow(Accuracy);
+pub(crate) struct AccuracyRow(pub(crate) Accuracy);
 
 impl super::Timed for AccuracyRow {
     fn time_us(&self) -> u64 {
@@ -226,15 +264,7 @@ struct AccuracyColumns {
 impl RowParser<AccuracyRow> for AccuracyColumns {
     fn parse(&mut self, rec: &StringRecord, _: &mut SkipCounts) -> Result<AccuracyRow, SkipKind> {
         let v = vector3(rec, self.values)?;
-        if v.iter().any(|&a| a <= 0.0) {
-            return Err(SkipKind::OutOfRange);
-        }
-        Ok(AccuracyRow(Accuracy {
-            t_us: seconds_as_us(rec, self.t)?,
-            horizontal_m: v.x,
-            vertical_m: v.y,
-            speed_m_s: v.z,
-        }))
+        Ok(AccuracyRow(Accuracy::new(seconds_as_us(rec, self.t)?, v)?))
     }
 }
 
@@ -245,17 +275,26 @@ impl AccuracyJoin {
             t: table.column(TIME_COLUMN)?,
             values: table.columns3(["hAcc_m", "vAcc_m", "sAcc_m_s"])?,
         };
-        Ok(Self {
-            stream: RowStream::new(table, Box::new(parser), "gps_accuracy"),
+        Ok(Self::from_stream(RowStream::new(
+            table,
+            Box::new(parser),
+            "gps_accuracy",
+        )))
+    }
+
+    /// The join over any stream of accuracy rows.
+    pub(crate) fn from_stream(stream: RowStream<AccuracyRow>) -> Self {
+        Self {
+            stream,
             before: None,
             after: None,
             exhausted: false,
-        })
+        }
     }
 
     /// The accuracy row nearest to `t_us` within the window. Fix times
     /// increase, so rows behind the current fix are dropped as it goes.
-    fn at(&mut self, t_us: u64, skips: &mut SkipCounts) -> Option<Accuracy> {
+    pub(crate) fn at(&mut self, t_us: u64, skips: &mut SkipCounts) -> Option<Accuracy> {
         loop {
             match self.after {
                 Some(a) if a.t_us <= t_us => self.before = self.after.take(),
@@ -300,9 +339,7 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
             t_us,
             position,
             velocity_ned_m_s,
-            accuracy: accuracy.map_or([None; 3], |a| {
-                [Some(a.horizontal_m), Some(a.vertical_m), Some(a.speed_m_s)]
-            }),
+            accuracy: accuracy.map_or([None; 3], Accuracy::as_row),
         }
         .into_event()
     }

@@ -8,6 +8,11 @@
 //! | [`Crate`](LogFormat::Crate) | `imu.csv`, `gps.csv`, `mag.csv` of `docs/csv-format.md` | none |
 //! | [`ArduPilot`](LogFormat::ArduPilot) | DataFlash log exported to CSV (`imu.csv`, `gps.csv`, `gps_accuracy.csv`, `mag.csv`) | seconds to µs, mGauss to gauss, speed/course to NED velocity when the NED columns are absent |
 //! | [`Px4`](LogFormat::Px4) | `ulog2csv` output `<log>_<topic>_<instance>.csv` | 1e-7 deg and mm to deg and m (older GPS layout) |
+//! | [`DataFlash`](LogFormat::DataFlash) | ArduPilot DataFlash `.bin`, starts `A3 95` ([`dataflash`]) | as the ArduPilot CSV, from the records' format letters |
+//! | [`Ulog`](LogFormat::Ulog) | PX4 ULog `.ulg`, starts `ULog` ([`ulog`]) | as the PX4 CSV |
+//!
+//! A single file given as the log is recognised by its first bytes; a
+//! directory is a CSV layout.
 //!
 //! # Streaming
 //! Each file has its own CSV reader and holds one parsed row at a time; the
@@ -38,12 +43,16 @@ mod table;
 
 pub mod ardupilot;
 pub mod crate_csv;
+pub mod dataflash;
 pub mod estimates_csv;
 pub mod px4;
 pub mod run;
+pub mod ulog;
+pub mod window;
 
 pub use estimates_csv::EstimateWriter;
 pub use run::{ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
+pub use window::{FlightWindow, flight_window};
 
 use crate::error::Error;
 use crate::geo::quaternion_from_euler;
@@ -331,8 +340,33 @@ pub enum ReplayError {
         searched: String,
     },
     /// An unknown format name.
-    #[error("unknown log format `{0}` (expected auto, csv, ardupilot or px4)")]
+    #[error("unknown log format `{0}` (expected auto, csv, ardupilot, px4, bin or ulg)")]
     UnknownFormatName(String),
+    /// A binary log's bytes are not a valid record.
+    #[error(
+        "{} is corrupt{}{}: {reason}",
+        path.display(),
+        offset.map_or_else(String::new, |o| format!(" at byte {o}")),
+        record.as_ref().map_or_else(String::new, |r| format!(" (record {r})"))
+    )]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// Byte offset of the bad record, when the parser reports it.
+        offset: Option<u64>,
+        /// The record's message name, when known.
+        record: Option<String>,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A binary log lacks the records asked for (e.g. an IMU instance).
+    #[error("{} has no {what} records", path.display())]
+    MissingRecords {
+        /// The file.
+        path: PathBuf,
+        /// What was looked for.
+        what: String,
+    },
 }
 
 /// The log layouts the readers understand.
@@ -344,16 +378,54 @@ pub enum LogFormat {
     ArduPilot,
     /// PX4 ULog exported by `ulog2csv`.
     Px4,
+    /// ArduPilot DataFlash binary log (`.bin`).
+    DataFlash,
+    /// PX4 ULog binary log (`.ulg`).
+    Ulog,
 }
 
 impl LogFormat {
-    /// The name used on command lines: `csv`, `ardupilot`, `px4`.
+    /// The name used on command lines: `csv`, `ardupilot`, `px4`, `bin`, `ulg`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Crate => "csv",
             Self::ArduPilot => "ardupilot",
             Self::Px4 => "px4",
+            Self::DataFlash => "bin",
+            Self::Ulog => "ulg",
         }
+    }
+
+    /// The binary format a file starts with: `ULog` is PX4 ULog, `A3 95`
+    /// an ArduPilot DataFlash log; `Ok(None)` for anything else.
+    pub fn sniff(path: &Path) -> Result<Option<Self>, ReplayError> {
+        use std::io::Read;
+        let mut head = [0u8; 4];
+        let mut file = std::fs::File::open(path).map_err(|source| ReplayError::Open {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut read = 0;
+        while read < head.len() {
+            match file.read(&mut head[read..]) {
+                Ok(0) => break,
+                Ok(n) => read += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(source) => {
+                    return Err(ReplayError::Open {
+                        path: path.to_path_buf(),
+                        source,
+                    });
+                }
+            }
+        }
+        Ok(if head[..read].starts_with(ulog::MAGIC) {
+            Some(Self::Ulog)
+        } else if head[..read].starts_with(&dataflash::RECORD_HEADER) {
+            Some(Self::DataFlash)
+        } else {
+            None
+        })
     }
 
     /// Parses a command-line name; `auto` gives `Ok(None)`.
@@ -363,6 +435,8 @@ impl LogFormat {
             "csv" | "crate" => Ok(Some(Self::Crate)),
             "ardupilot" => Ok(Some(Self::ArduPilot)),
             "px4" => Ok(Some(Self::Px4)),
+            "bin" | "dataflash" => Ok(Some(Self::DataFlash)),
+            "ulg" | "ulog" => Ok(Some(Self::Ulog)),
             other => Err(ReplayError::UnknownFormatName(other.to_string())),
         }
     }
@@ -400,8 +474,11 @@ pub struct ReaderOptions {
     /// Added to every GPS receive time, microseconds: the added-delay
     /// experiment (the paper's Table 7). The merge keeps the stream ordered.
     pub gps_delay_added_us: u64,
-    /// ArduPilot: which IMU file.
+    /// ArduPilot CSV: which IMU file.
     pub ardupilot_imu: ArduPilotImu,
+    /// Binary logs: which IMU (DataFlash `IMU` instance, ULog
+    /// `sensor_combined` multi-id); 0 is the first.
+    pub imu_instance: u8,
     /// ArduPilot: which reference file.
     pub ardupilot_reference: ArduPilotReference,
 }
@@ -435,6 +512,19 @@ impl LogFiles {
         format: Option<LogFormat>,
         options: &ReaderOptions,
     ) -> Result<Self, ReplayError> {
+        if let [single] = inputs
+            && single.as_ref().is_file()
+        {
+            let path = single.as_ref();
+            let binary = match format {
+                Some(f @ (LogFormat::DataFlash | LogFormat::Ulog)) => Some(f),
+                Some(_) => None,
+                None => LogFormat::sniff(path)?,
+            };
+            if let Some(format) = binary {
+                return Ok(Self::binary(path, format));
+            }
+        }
         let files = list_files(inputs)?;
         let searched = inputs
             .iter()
@@ -449,6 +539,21 @@ impl LogFiles {
             LogFormat::Crate => crate_csv::locate(&files, &searched),
             LogFormat::ArduPilot => ardupilot::locate(&files, &searched, options),
             LogFormat::Px4 => px4::locate(&files, &searched),
+            LogFormat::DataFlash | LogFormat::Ulog => Err(ReplayError::UnknownFormat { searched }),
+        }
+    }
+
+    /// A binary log: every stream, the reference and the parameters come
+    /// from the one file.
+    fn binary(path: &Path, format: LogFormat) -> Self {
+        Self {
+            format,
+            imu: path.to_path_buf(),
+            gps: path.to_path_buf(),
+            mag: Some(path.to_path_buf()),
+            gps_accuracy: None,
+            reference: Some(path.to_path_buf()),
+            params: Some(path.to_path_buf()),
         }
     }
 }
@@ -542,7 +647,10 @@ impl<T: Scalar> MergeInput<T> {
     fn advance(&mut self, skips: &mut SkipCounts) {
         self.head = self.stream.next_value(skips).map(|mut e| {
             if let SensorEvent::Gps(g) = &mut e {
-                g.t_us += self.shift_us;
+                // Saturates instead of overflowing: a receive time within
+                // the added delay of u64::MAX µs (584,000 years) is kept
+                // at u64::MAX, still after every earlier sample.
+                g.t_us = g.t_us.saturating_add(self.shift_us);
             }
             e
         });
@@ -561,10 +669,12 @@ pub struct LogReader<T: Scalar> {
 impl<T: Scalar> LogReader<T> {
     /// Opens the files of a log (see [`LogFiles::locate`]).
     pub fn open(files: &LogFiles, options: &ReaderOptions) -> Result<Self, ReplayError> {
-        let streams = match files.format {
-            LogFormat::Crate => crate_csv::open_streams(files)?,
-            LogFormat::ArduPilot => ardupilot::open_streams(files)?,
-            LogFormat::Px4 => px4::open_streams(files)?,
+        let (streams, skips) = match files.format {
+            LogFormat::Crate => (crate_csv::open_streams(files)?, SkipCounts::default()),
+            LogFormat::ArduPilot => (ardupilot::open_streams(files)?, SkipCounts::default()),
+            LogFormat::Px4 => (px4::open_streams(files)?, SkipCounts::default()),
+            LogFormat::DataFlash => dataflash::open_streams(&files.imu, options.imu_instance)?,
+            LogFormat::Ulog => ulog::open_streams(&files.imu, options.imu_instance)?,
         };
         let input = |stream, shift_us| MergeInput {
             stream,
@@ -578,7 +688,7 @@ impl<T: Scalar> LogReader<T> {
         inputs.extend(streams.mag.map(|m| input(m, 0)));
         let mut reader = Self {
             inputs,
-            skips: SkipCounts::default(),
+            skips,
             format: files.format,
         };
         for input in &mut reader.inputs {
@@ -610,6 +720,23 @@ impl<T: Scalar> LogReader<T> {
     pub fn file_names(&self) -> Vec<&str> {
         self.inputs.iter().map(|i| i.stream.label()).collect()
     }
+
+    /// Rows or records read so far (accepted and skipped) per stream:
+    /// once the iterator has ended, the samples each stream of the log holds.
+    pub fn stream_counts(&self) -> StreamCounts {
+        let read = |i: usize| {
+            self.inputs.get(i).map_or(0, |input| {
+                self.skips
+                    .file(input.stream.label())
+                    .map_or(0, |c| c.accepted + c.skipped_total())
+            })
+        };
+        StreamCounts {
+            imu: read(0),
+            gps: read(1),
+            mag: read(2),
+        }
+    }
 }
 
 impl<T: Scalar> Iterator for LogReader<T> {
@@ -627,6 +754,17 @@ impl<T: Scalar> Iterator for LogReader<T> {
         self.inputs[next].advance(&mut self.skips);
         event
     }
+}
+
+/// Rows or records per stream of a log ([`LogReader::stream_counts`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StreamCounts {
+    /// IMU samples.
+    pub imu: u64,
+    /// GPS fixes (with or without a fix).
+    pub gps: u64,
+    /// Magnetometer samples.
+    pub mag: u64,
 }
 
 /// An IMU event from `f64` values, checked like the estimators check it.
@@ -723,6 +861,8 @@ impl ReferenceReader {
             LogFormat::Crate => crate_csv::reference_stream(path)?,
             LogFormat::ArduPilot => ardupilot::reference_stream(path)?,
             LogFormat::Px4 => px4::reference_stream(path)?,
+            LogFormat::DataFlash => dataflash::reference_stream(path)?,
+            LogFormat::Ulog => ulog::reference_stream(path)?,
         };
         Ok(Some(Self {
             stream,

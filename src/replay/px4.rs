@@ -46,6 +46,40 @@ pub const ATTITUDE_TOPIC: &str = "vehicle_attitude";
 pub const RELATIVE_TIMESTAMP_INVALID: i64 = 2_147_483_647;
 /// Lowest `fix_type` accepted: 3 is a 3-D fix.
 pub const MIN_FIX_TYPE: f64 = 3.0;
+/// `sensor_combined` gyro fields, rad/s, body FRD.
+pub(crate) const GYRO_FIELDS: [&str; 3] = ["gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"];
+/// `sensor_combined` accelerometer fields, m/s², body FRD.
+pub(crate) const ACCEL_FIELDS: [&str; 3] = [
+    "accelerometer_m_s2[0]",
+    "accelerometer_m_s2[1]",
+    "accelerometer_m_s2[2]",
+];
+/// `sensor_combined`'s accelerometer time relative to the gyro's.
+pub(crate) const ACCEL_RELATIVE_FIELD: &str = "accelerometer_timestamp_relative";
+/// `vehicle_magnetometer` field, gauss, body FRD.
+pub(crate) const MAG_FIELDS: [&str; 3] = [
+    "magnetometer_ga[0]",
+    "magnetometer_ga[1]",
+    "magnetometer_ga[2]",
+];
+/// GPS position fields of the newer layout (deg, deg, m) and the older one
+/// (1e-7 deg, 1e-7 deg, mm).
+pub(crate) const GPS_POSITION_FIELDS: [[&str; 3]; 2] = [
+    ["latitude_deg", "longitude_deg", "altitude_msl_m"],
+    ["lat", "lon", "alt"],
+];
+/// Factors from the older GPS layout's units to degrees, degrees and metres.
+pub(crate) const OLD_GPS_POSITION_SCALE: [f64; 3] = [
+    1.0 / SCALED_DEG_PER_DEG,
+    1.0 / SCALED_DEG_PER_DEG,
+    1.0 / MM_PER_M,
+];
+/// GPS velocity fields, m/s NED.
+pub(crate) const GPS_VELOCITY_FIELDS: [&str; 3] = ["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"];
+/// GPS horizontal, vertical and speed accuracy fields (m, m, m/s).
+pub(crate) const GPS_ACCURACY_FIELDS: [&str; 3] = ["eph", "epv", "s_variance_m_s"];
+/// Attitude quaternion fields, scalar first.
+pub(crate) const ATTITUDE_FIELDS: [&str; 4] = ["q[0]", "q[1]", "q[2]", "q[3]"];
 
 /// The file of `topic` with the lowest instance number, if any: a name
 /// ending in `_<topic>_<digits>.csv`.
@@ -103,25 +137,17 @@ const CLOCK: Clock = Clock {
 pub(crate) fn open_streams<T: Scalar>(files: &LogFiles) -> Result<SensorStreams<T>, ReplayError> {
     let imu = ImuLayout {
         clock: CLOCK,
-        gyro: ["gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"],
-        accel: [
-            "accelerometer_m_s2[0]",
-            "accelerometer_m_s2[1]",
-            "accelerometer_m_s2[2]",
-        ],
+        gyro: GYRO_FIELDS,
+        accel: ACCEL_FIELDS,
     };
     let mag = MagLayout {
         clock: CLOCK,
-        field: [
-            "magnetometer_ga[0]",
-            "magnetometer_ga[1]",
-            "magnetometer_ga[2]",
-        ],
+        field: MAG_FIELDS,
         scale: 1.0,
     };
     let accel_invalid = |table: &CsvTable| {
         vec![RowFlag {
-            column: table.find("accelerometer_timestamp_relative"),
+            column: table.find(ACCEL_RELATIVE_FIELD),
             rejects: |relative| relative == RELATIVE_TIMESTAMP_INVALID as f64,
             kind: SkipKind::Invalid,
         }]
@@ -170,20 +196,13 @@ impl<T: Scalar> RowParser<SensorEvent<T>> for GpsColumns {
 
 fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, ReplayError> {
     let table = CsvTable::open(path)?;
-    let position = match table.one_of3(&[
-        ["latitude_deg", "longitude_deg", "altitude_msl_m"],
-        ["lat", "lon", "alt"],
-    ])? {
+    let position = match table.one_of3(&GPS_POSITION_FIELDS)? {
         // Newer layout: degrees and metres.
         (0, idx) => GeodeticColumns::unscaled(idx),
         // Older layout: lat/lon in 1e-7 deg, alt in mm.
         (_, idx) => GeodeticColumns {
             idx,
-            scale: [
-                1.0 / SCALED_DEG_PER_DEG,
-                1.0 / SCALED_DEG_PER_DEG,
-                1.0 / MM_PER_M,
-            ],
+            scale: OLD_GPS_POSITION_SCALE,
         },
     };
     let parser = GpsColumns {
@@ -201,8 +220,8 @@ fn gps_stream<T: Scalar>(path: &Path) -> Result<RowStream<SensorEvent<T>>, Repla
             },
         ],
         position,
-        velocity: table.columns3(["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])?,
-        accuracy: AccuracyColumns::find(&table, ["eph", "epv", "s_variance_m_s"]),
+        velocity: table.columns3(GPS_VELOCITY_FIELDS)?,
+        accuracy: AccuracyColumns::find(&table, GPS_ACCURACY_FIELDS),
     };
     Ok(RowStream::new(table, Box::new(parser), "gps"))
 }
@@ -232,7 +251,7 @@ pub(crate) fn reference_stream(path: &Path) -> Result<RowStream<ReferenceSample>
     let table = CsvTable::open(path)?;
     let parser = AttitudeColumns {
         t: table.column(TIME_COLUMN)?,
-        q: table.columns4(["q[0]", "q[1]", "q[2]", "q[3]"])?,
+        q: table.columns4(ATTITUDE_FIELDS)?,
     };
     Ok(RowStream::new(table, Box::new(parser), "reference"))
 }

@@ -171,12 +171,19 @@ pub(crate) fn unit_quaternion(
     idx: [usize; 4],
 ) -> Result<UnitQuaternion<f64>, SkipKind> {
     let [w, x, y, z] = idx;
-    let q = Quaternion::new(
+    quaternion_wxyz([
         number(rec, w)?,
         number(rec, x)?,
         number(rec, y)?,
         number(rec, z)?,
-    );
+    ])
+}
+
+/// A scalar-first quaternion `[w, x, y, z]` normalized; a norm below 0.5 is
+/// `OutOfRange`.
+pub(crate) fn quaternion_wxyz(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, SkipKind> {
+    let [w, x, y, z] = wxyz;
+    let q = Quaternion::new(w, x, y, z);
     if q.norm() < 0.5 {
         return Err(SkipKind::OutOfRange);
     }
@@ -211,12 +218,26 @@ pub(crate) trait RowParser<Out> {
     fn parse(&mut self, rec: &StringRecord, skips: &mut SkipCounts) -> Result<Out, SkipKind>;
 }
 
-/// One file's rows parsed into time-stamped values in increasing time:
-/// a row that fails to parse, or whose time is not after the last accepted
-/// one, is counted and skipped.
+/// Where a [`RowStream`]'s values come from.
+enum Source<Out> {
+    /// A CSV file parsed row by row.
+    Csv {
+        table: CsvTable,
+        parser: Box<dyn RowParser<Out>>,
+    },
+    /// Records of a binary log already decoded (each one a value or the
+    /// reason it is skipped), in the order the log holds them.
+    Decoded {
+        records: std::vec::IntoIter<Result<Out, SkipKind>>,
+        label: String,
+    },
+}
+
+/// One file's rows (or one binary log's records of one stream) parsed into
+/// time-stamped values in increasing time: a row that fails to parse, or
+/// whose time is not after the last accepted one, is counted and skipped.
 pub(crate) struct RowStream<Out> {
-    table: CsvTable,
-    parser: Box<dyn RowParser<Out>>,
+    source: Source<Out>,
     stream: &'static str,
     last_us: Option<u64>,
 }
@@ -228,8 +249,24 @@ impl<Out: Timed> RowStream<Out> {
         stream: &'static str,
     ) -> Self {
         Self {
-            table,
-            parser,
+            source: Source::Csv { table, parser },
+            stream,
+            last_us: None,
+        }
+    }
+
+    /// A stream over records decoded from a binary log; `label` names them
+    /// in the skip report (e.g. `log171.bin:IMU`).
+    pub(crate) fn decoded(
+        records: Vec<Result<Out, SkipKind>>,
+        label: String,
+        stream: &'static str,
+    ) -> Self {
+        Self {
+            source: Source::Decoded {
+                records: records.into_iter(),
+                label,
+            },
             stream,
             last_us: None,
         }
@@ -238,8 +275,14 @@ impl<Out: Timed> RowStream<Out> {
     /// The next accepted value, or `None` when the file is exhausted.
     pub(crate) fn next_value(&mut self, skips: &mut SkipCounts) -> Option<Out> {
         loop {
-            let rec = self.table.next_record(skips)?;
-            let outcome = self.parser.parse(rec, skips).and_then(|value| {
+            let outcome = match &mut self.source {
+                Source::Csv { table, parser } => {
+                    let rec = table.next_record(skips)?;
+                    parser.parse(rec, skips)
+                }
+                Source::Decoded { records, .. } => records.next()?,
+            };
+            let outcome = outcome.and_then(|value| {
                 check_time(self.stream, self.last_us, value.time_us())
                     .map(|()| value)
                     .map_err(SkipKind::from)
@@ -247,16 +290,19 @@ impl<Out: Timed> RowStream<Out> {
             match outcome {
                 Ok(value) => {
                     self.last_us = Some(value.time_us());
-                    skips.accept(self.table.label());
+                    skips.accept(self.label());
                     return Some(value);
                 }
-                Err(kind) => skips.skip(self.table.label(), kind),
+                Err(kind) => skips.skip(self.label(), kind),
             }
         }
     }
 
     /// The file name this stream reads.
     pub(crate) fn label(&self) -> &str {
-        self.table.label()
+        match &self.source {
+            Source::Csv { table, .. } => table.label(),
+            Source::Decoded { label, .. } => label,
+        }
     }
 }

@@ -48,8 +48,11 @@
 //! # Scoring helpers
 //! [`delay_bound_s`] is the physical yardstick for any delay estimate on a
 //! run: how well GPS velocities over a window can pin the delay at all.
-//! [`noise_floor()`] derives what Table 3's noise allows any filter to reach.
+//! [`noise_floor()`] derives what Table 3's noise allows any filter to reach
+//! at hover; [`trajectory_bound()`] what the run's own sensors allow along
+//! its true trajectory, biases and delay included.
 
+pub mod bound;
 pub mod csv;
 pub mod delay;
 pub mod faults;
@@ -58,7 +61,10 @@ pub mod score;
 pub mod sensors;
 pub mod trajectory;
 
-pub use delay::{DelayProfile, DelayStep};
+pub use bound::{
+    BoundConfig, BoundMagnetometer, BoundRms, BoundSample, TrajectoryBound, trajectory_bound,
+};
+pub use delay::{DelayProfile, DelayRamp, DelayStep};
 pub use faults::{Fault, FaultySimulation};
 pub use noise_floor::{NoiseFloor, noise_floor};
 pub use score::{attitude_error_ned_rad, tilt_heading_error_rad};
@@ -459,8 +465,8 @@ impl Simulation {
     fn gps_event(&mut self, t_us: u64) -> SimEvent {
         let t_s = t_us as f64 * 1e-6;
         let delay = &self.config.delay;
-        let jitter = if delay.jitter_std_s > 0.0 {
-            self.jitter_rng.next() * delay.jitter_std_s
+        let jitter = if delay.has_jitter() {
+            delay.jitter_s(self.jitter_rng.next())
         } else {
             0.0
         };

@@ -1,0 +1,604 @@
+//! The delay suite of issue 11: how fast the delay loop locks on, how it
+//! follows changes, at which GPS rates it works, what it reports outside its
+//! range, and whether its sigma is honest.
+//!
+//! ```text
+//! cargo run --release --features sim --example reproduce -- --delay-suite --json target/delay-suite.json
+//! ```
+//!
+//! writes `"delay_scenarios": [{"name", "passed", "criterion", "measured", "limit"}]`. Unless a
+//! row says otherwise: the `proposed` navigator, no offline calibration, start 0.1 s, 60 s runs,
+//! `--seeds` seeds (default 5) with the median reported, delay RMSE scored from 20 s. A row whose
+//! behaviour cannot run (the navigator refuses its configuration) has `measured: null` and
+//! `passed: false`; it is never skipped. Seeds run on two threads.
+
+use super::{
+    CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, UNCALIBRATED_START, calibrate,
+    ekf16_config, median, nav,
+};
+use delaynav::delay::DelayStatus;
+use delaynav::nav::{DelayCompensatedNav, DelayMode};
+use delaynav::sim::{
+    DelayProfile, DelayRamp, DelayStep, Scenario, SimConfig, SimEvent, Simulation,
+};
+use delaynav::{Aekf17Config, AugmentedEkf17, Navigator};
+use serde_json::{Value, json};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Length of every run, s.
+const RUN_S: f64 = 60.0;
+/// Scored from here, s (the simulator's trajectories carry little motion before 15 s).
+const SCORE_FROM_S: f64 = 20.0;
+/// Spacing of the trace points, us.
+const TRACE_STEP_US: u64 = 10_000;
+/// Worker threads (the machine's two cores).
+const THREADS: usize = 2;
+
+/// What a row accepts.
+#[derive(Debug, Clone, Copy)]
+pub enum Limit {
+    /// The measured figure must be at most this.
+    Max(f64),
+    /// The measured figure must lie in `[lo, hi]`.
+    Band(f64, f64),
+}
+
+impl Limit {
+    fn accepts(self, x: f64) -> bool {
+        match self {
+            Limit::Max(max) => x <= max,
+            Limit::Band(lo, hi) => (lo..=hi).contains(&x),
+        }
+    }
+
+    fn to_json(self) -> Value {
+        match self {
+            Limit::Max(max) => json!(max),
+            Limit::Band(lo, hi) => json!([lo, hi]),
+        }
+    }
+}
+
+/// One row of the suite.
+#[derive(Debug, Clone)]
+pub struct Row {
+    /// The issue's name of the row.
+    pub name: &'static str,
+    /// What is measured, with its unit.
+    pub criterion: &'static str,
+    /// The measured figure; `None` when the behaviour cannot run.
+    pub measured: Option<f64>,
+    /// The issue's limit.
+    pub limit: Limit,
+}
+
+impl Row {
+    /// A finite measured figure within the limit.
+    pub fn passed(&self) -> bool {
+        self.measured
+            .is_some_and(|x| x.is_finite() && self.limit.accepts(x))
+    }
+
+    fn to_json(&self) -> Value {
+        json!({
+            "name": self.name,
+            "passed": self.passed(),
+            "criterion": self.criterion,
+            "measured": self.measured.filter(|x| x.is_finite()),
+            "limit": self.limit.to_json(),
+        })
+    }
+}
+
+/// How much of the suite to run.
+#[derive(Debug, Clone)]
+pub struct SuiteOptions {
+    /// Seeds of every row but `sigma_coverage`.
+    pub seeds: Vec<u64>,
+    /// Seeds of `sigma_coverage`, per scenario.
+    pub coverage_seeds: Vec<u64>,
+    /// Only these rows (all when `None`).
+    pub rows: Option<Vec<&'static str>>,
+}
+
+impl SuiteOptions {
+    /// The issue's suite: `seeds` seeds from `first` (20 for the coverage).
+    pub fn full(first: u64, seeds: u64) -> Self {
+        Self {
+            seeds: (first..first + seeds).collect(),
+            coverage_seeds: (first..first + 20).collect(),
+            rows: None,
+        }
+    }
+
+    fn wants(&self, name: &str) -> bool {
+        self.rows.as_ref().is_none_or(|r| r.contains(&name))
+    }
+}
+
+/// The delay estimate of one run at regular instants.
+#[derive(Debug, Default, Clone)]
+struct DelayTrace {
+    t_s: Vec<f64>,
+    estimate_s: Vec<f64>,
+    std_s: Vec<f64>,
+    truth_s: Vec<f64>,
+}
+
+impl DelayTrace {
+    fn errors_from(&self, from_s: f64) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        (0..self.t_s.len())
+            .filter(move |&k| self.t_s[k] >= from_s)
+            .map(|k| {
+                (
+                    self.t_s[k],
+                    self.estimate_s[k] - self.truth_s[k],
+                    self.std_s[k],
+                )
+            })
+    }
+
+    /// Delay RMSE from `from_s`, s; NaN without points.
+    fn rmse_from(&self, from_s: f64) -> f64 {
+        let (sum, n) = self
+            .errors_from(from_s)
+            .fold((0.0, 0usize), |(s, n), (_, e, _)| (s + e * e, n + 1));
+        if n == 0 {
+            f64::NAN
+        } else {
+            (sum / n as f64).sqrt()
+        }
+    }
+
+    /// Time from `from_s` until the error stays within `tolerance_s` to the
+    /// end, s; infinite when it ends outside.
+    fn settle_after(&self, from_s: f64, tolerance_s: f64) -> f64 {
+        let mut last_out = None;
+        let mut any = false;
+        for (t, e, _) in self.errors_from(from_s) {
+            any = true;
+            if e.is_nan() || e.abs() > tolerance_s {
+                last_out = Some(t);
+            }
+        }
+        match last_out {
+            _ if !any => f64::INFINITY,
+            None => 0.0,
+            Some(t) if t >= *self.t_s.last().unwrap_or(&0.0) => f64::INFINITY,
+            Some(t) => t + TRACE_STEP_US as f64 * 1e-6 - from_s,
+        }
+    }
+
+    /// Fraction of points from `from_s` whose error is within one sigma,
+    /// as (inside, total).
+    fn coverage_from(&self, from_s: f64) -> (usize, usize) {
+        self.errors_from(from_s)
+            .fold((0, 0), |(inside, n), (_, e, s)| {
+                (inside + usize::from(e.abs() <= s), n + 1)
+            })
+    }
+}
+
+/// Feeds one event to an estimator (refusals are its business).
+fn feed<N: Navigator<f64>>(estimator: &mut N, event: &SimEvent) {
+    match event {
+        SimEvent::Imu { sample, .. } => {
+            let _ = estimator.push_imu(sample);
+        }
+        SimEvent::Mag(m) => {
+            let _ = estimator.push_mag(m);
+        }
+        SimEvent::Gps { fix, .. } => {
+            let _ = estimator.push_gps(fix);
+        }
+    }
+}
+
+/// Feeds a run to an estimator (refusals are its business) and records its
+/// delay estimate every [`TRACE_STEP_US`].
+fn trace<N: Navigator<f64>>(mut estimator: N, events: &[SimEvent]) -> DelayTrace {
+    let mut out = DelayTrace::default();
+    for event in events {
+        feed(&mut estimator, event);
+        let SimEvent::Imu { truth, .. } = event else {
+            continue;
+        };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
+        }
+        let est = estimator.estimate();
+        out.t_s.push(truth.t_us as f64 * 1e-6);
+        out.estimate_s
+            .push(est.and_then(|e| e.delay_s).unwrap_or(f64::NAN));
+        out.std_s
+            .push(est.and_then(|e| e.delay_std_s).unwrap_or(f64::NAN));
+        out.truth_s.push(truth.gps_delay_s);
+    }
+    out
+}
+
+/// Runs `f` on every seed, on [`THREADS`] threads; results in seed order.
+fn per_seed<R: Send>(seeds: &[u64], f: impl Fn(u64) -> R + Sync) -> Vec<R> {
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<R>>> = Mutex::new((0..seeds.len()).map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..THREADS.min(seeds.len()) {
+            scope.spawn(|| {
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(&seed) = seeds.get(k) else { break };
+                    let r = f(seed);
+                    results.lock().expect("no worker panicked")[k] = Some(r);
+                }
+            });
+        }
+    });
+    results
+        .into_inner()
+        .expect("no worker panicked")
+        .into_iter()
+        .map(|r| r.expect("every seed ran"))
+        .collect()
+}
+
+/// A 60 s run of `scenario` with `seed` and the delay `profile`.
+fn sim(scenario: Scenario, seed: u64, profile: DelayProfile) -> SimConfig {
+    SimConfig {
+        duration_s: RUN_S,
+        delay: profile,
+        ..SimConfig::for_scenario(scenario, seed)
+    }
+}
+
+fn events(config: &SimConfig) -> Vec<SimEvent> {
+    Simulation::new(config.clone())
+        .expect("valid simulation config")
+        .collect()
+}
+
+/// The offline calibration of `config`'s seed on its own run (as the
+/// calibrated reproduce runs do), with a constant delay equal to the
+/// profile's start.
+fn calibrated_start(config: &SimConfig) -> DelayStart {
+    let mut cal = config.clone();
+    cal.seed = config.seed + CALIBRATION_SEED_OFFSET;
+    cal.duration_s = CALIBRATION_DURATION_S;
+    cal.delay = DelayProfile::constant(config.delay.initial_s);
+    calibrate(&cal)
+}
+
+/// How the navigator of a row is configured beyond the simulator's EKF.
+#[derive(Debug, Clone, Copy)]
+struct NavSetup {
+    calibrated: bool,
+    /// Delay range of the loop, s (`None`: the default).
+    range_s: Option<(f64, f64)>,
+    /// The loop adapted to this GPS rate, Hz (`None`: the 10 Hz defaults).
+    gps_rate_hz: Option<f64>,
+}
+
+const COLD: NavSetup = NavSetup {
+    calibrated: false,
+    range_s: None,
+    gps_rate_hz: None,
+};
+
+/// The `proposed` navigator of a row; `None` when it refuses the setup.
+fn proposed(config: &SimConfig, setup: NavSetup) -> Option<DelayCompensatedNav<f64>> {
+    let start = if setup.calibrated {
+        calibrated_start(config)
+    } else {
+        UNCALIBRATED_START
+    };
+    let mode = DelayMode::Estimated {
+        initial_s: start.delay_s,
+    };
+    let mut nav_config = *nav(config, mode, start.std_s).config();
+    if let Some(rate_hz) = setup.gps_rate_hz {
+        nav_config.delay_loop = nav_config.delay_loop.adapted_to_gps_rate(rate_hz).ok()?;
+    }
+    if let Some((min, max)) = setup.range_s {
+        nav_config.delay_loop.fusion.delay_min_s = min;
+        nav_config.delay_loop.fusion.delay_max_s = max;
+    }
+    DelayCompensatedNav::new(nav_config).ok()
+}
+
+/// Delay traces of the `proposed` navigator on every seed; `None` when it
+/// refuses the setup.
+fn proposed_traces(
+    seeds: &[u64],
+    config: impl Fn(u64) -> SimConfig + Sync,
+    setup: NavSetup,
+) -> Option<Vec<DelayTrace>> {
+    per_seed(seeds, |seed| {
+        let config = config(seed);
+        let estimator = proposed(&config, setup)?;
+        Some(trace(estimator, &events(&config)))
+    })
+    .into_iter()
+    .collect()
+}
+
+/// Median over the seeds of the delay RMSE from 20 s, ms.
+fn median_rmse_ms(traces: &[DelayTrace]) -> f64 {
+    median(
+        traces
+            .iter()
+            .map(|t| t.rmse_from(SCORE_FROM_S) * 1e3)
+            .collect(),
+    )
+}
+
+/// Median that keeps infinite values (a run that never settled) in order.
+fn median_with_infinity(mut xs: Vec<f64>) -> f64 {
+    if xs.is_empty() || xs.iter().any(|x| x.is_nan()) {
+        return f64::NAN;
+    }
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+fn rmse_row(
+    name: &'static str,
+    options: &SuiteOptions,
+    config: impl Fn(u64) -> SimConfig + Sync,
+    setup: NavSetup,
+    limit_ms: f64,
+    criterion: &'static str,
+) -> Row {
+    let measured = proposed_traces(&options.seeds, config, setup).map(|t| median_rmse_ms(&t));
+    Row {
+        name,
+        criterion,
+        measured,
+        limit: Limit::Max(limit_ms),
+    }
+}
+
+fn with_gps_rate(mut config: SimConfig, rate_hz: f64) -> SimConfig {
+    config.sensors.gps_rate_hz = rate_hz;
+    config
+}
+
+/// Still at the origin, level, fixed heading.
+fn hover(mut config: SimConfig) -> SimConfig {
+    config.trajectory.path.clear();
+    config.trajectory.yaw_amplitude_rad = 0.0;
+    config.trajectory.accel_limit_m_s2 = 1e-6;
+    config
+}
+
+/// Runs the suite's rows that `options` selects, printing each as it ends.
+pub fn run(options: &SuiteOptions) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let mut push = |row: Row| {
+        eprintln!(
+            "{:<22} {:<6} measured {:>10} limit {:?}",
+            row.name,
+            if row.passed() { "PASS" } else { "FAIL" },
+            row.measured.map_or("null".into(), |x| format!("{x:.4}")),
+            row.limit
+        );
+        rows.push(row);
+    };
+    let constant =
+        |scenario, delay_s| move |seed| sim(scenario, seed, DelayProfile::constant(delay_s));
+    let rmse = "delay RMSE from 20 s, ms (median over seeds)";
+    for (name, scenario, limit_ms) in [
+        ("cold_start_low", Scenario::Low, 6.0),
+        ("cold_start_high", Scenario::High, 4.0),
+    ] {
+        if options.wants(name) {
+            let config = constant(scenario, 0.2);
+            push(rmse_row(name, options, config, COLD, limit_ms, rmse));
+        }
+    }
+    if options.wants("delay_step") {
+        let step = |seed| {
+            let profile = DelayProfile {
+                steps: vec![DelayStep {
+                    at_s: 20.0,
+                    change_s: 0.15,
+                }],
+                ..DelayProfile::constant(0.2)
+            };
+            sim(Scenario::High, seed, profile)
+        };
+        let setup = NavSetup {
+            calibrated: true,
+            range_s: None,
+            gps_rate_hz: None,
+        };
+        let measured = proposed_traces(&options.seeds, step, setup).map(|traces| {
+            median_with_infinity(traces.iter().map(|t| t.settle_after(20.0, 0.010)).collect())
+        });
+        push(Row {
+            name: "delay_step",
+            criterion: "s after the 0.2 -> 0.35 s step at 20 s until the error stays <= 10 ms (median)",
+            measured,
+            limit: Limit::Max(8.0),
+        });
+    }
+    if options.wants("delay_ramp") {
+        let ramp = |seed| {
+            let profile = DelayProfile {
+                ramps: vec![DelayRamp {
+                    start_s: 0.0,
+                    duration_s: RUN_S,
+                    change_s: 0.06,
+                }],
+                ..DelayProfile::constant(0.2)
+            };
+            sim(Scenario::High, seed, profile)
+        };
+        push(rmse_row("delay_ramp", options, ramp, COLD, 10.0, rmse));
+    }
+    if options.wants("delay_jitter") {
+        let jitter = |seed| {
+            let profile = DelayProfile {
+                jitter_uniform_half_width_s: 0.020,
+                ..DelayProfile::constant(0.2)
+            };
+            sim(Scenario::High, seed, profile)
+        };
+        let criterion = "delay RMSE against 0.2 s from 20 s, ms (median)";
+        push(rmse_row(
+            "delay_jitter",
+            options,
+            jitter,
+            COLD,
+            5.0,
+            criterion,
+        ));
+    }
+    for (name, rate_hz, limit_ms) in [("gps_2hz", 2.0, 20.0), ("gps_1hz", 1.0, 40.0)] {
+        if options.wants(name) {
+            let config = move |seed| {
+                with_gps_rate(
+                    sim(Scenario::High, seed, DelayProfile::constant(0.2)),
+                    rate_hz,
+                )
+            };
+            let setup = NavSetup {
+                gps_rate_hz: Some(rate_hz),
+                ..COLD
+            };
+            push(rmse_row(name, options, config, setup, limit_ms, rmse));
+        }
+    }
+    if options.wants("negative_delay") {
+        let setup = NavSetup {
+            calibrated: false,
+            range_s: Some((-0.5, 0.6)),
+            gps_rate_hz: None,
+        };
+        push(rmse_row(
+            "negative_delay",
+            options,
+            constant(Scenario::High, -0.15),
+            setup,
+            10.0,
+            "delay RMSE from 20 s, true -0.15 s, range -0.5..0.6 s, ms (median)",
+        ));
+    }
+    if options.wants("out_of_range_reported") {
+        push(out_of_range_row(options));
+    }
+    if options.wants("sigma_coverage") {
+        push(sigma_coverage_row(options));
+    }
+    if options.wants("aekf17_hover") {
+        push(aekf17_hover_row(options));
+    }
+    rows
+}
+
+/// True -0.15 s with the default range `[0, 1] s`: seconds from the start
+/// until the loop reports the delay below its range (median; infinite when
+/// never).
+fn out_of_range_row(options: &SuiteOptions) -> Row {
+    let times = per_seed(&options.seeds, |seed| {
+        let config = sim(Scenario::High, seed, DelayProfile::constant(-0.15));
+        let mut estimator = proposed(&config, COLD)?;
+        for event in &events(&config) {
+            feed(&mut estimator, event);
+            let below = matches!(
+                estimator.delay_loop().status(),
+                DelayStatus::BelowRange { .. }
+            );
+            if let (SimEvent::Gps { fix, .. }, true) = (event, below) {
+                return Some(fix.t_us as f64 * 1e-6);
+            }
+        }
+        Some(f64::INFINITY)
+    });
+    Row {
+        name: "out_of_range_reported",
+        criterion: "s from the start until the below-range status is raised, true -0.15 s, default range (median)",
+        measured: times
+            .into_iter()
+            .collect::<Option<Vec<f64>>>()
+            .map(median_with_infinity),
+        limit: Limit::Max(30.0),
+    }
+}
+
+/// Low and high, calibrated start, pooled over the coverage seeds: fraction
+/// of the trace points from 10 s whose error is within the reported 1-sigma.
+fn sigma_coverage_row(options: &SuiteOptions) -> Row {
+    let setup = NavSetup {
+        calibrated: true,
+        range_s: None,
+        gps_rate_hz: None,
+    };
+    let mut inside = 0usize;
+    let mut total = 0usize;
+    let mut refused = false;
+    for scenario in [Scenario::Low, Scenario::High] {
+        match proposed_traces(&options.coverage_seeds, constant_config(scenario), setup) {
+            Some(traces) => {
+                for t in &traces {
+                    let (i, n) = t.coverage_from(10.0);
+                    inside += i;
+                    total += n;
+                }
+            }
+            None => refused = true,
+        }
+    }
+    Row {
+        name: "sigma_coverage",
+        criterion: "fraction of samples from 10 s with |error| <= reported 1-sigma, low and high, calibrated start, pooled",
+        measured: (!refused && total > 0).then(|| inside as f64 / total as f64),
+        limit: Limit::Band(0.55, 0.80),
+    }
+}
+
+fn constant_config(scenario: Scenario) -> impl Fn(u64) -> SimConfig + Sync {
+    move |seed| sim(scenario, seed, DelayProfile::constant(0.2))
+}
+
+/// AEKF17 at hover for 60 s, started at the true 0.2 s with its default
+/// sigma: |final error| / final sigma (median).
+fn aekf17_hover_row(options: &SuiteOptions) -> Row {
+    let ratios = per_seed(&options.seeds, |seed| {
+        let config = hover(sim(Scenario::High, seed, DelayProfile::constant(0.2)));
+        let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
+        aekf.initial_delay_s = 0.2;
+        let t = trace(
+            AugmentedEkf17::new(aekf).expect("valid Aekf17 config"),
+            &events(&config),
+        );
+        let k = t.t_s.len().checked_sub(1)?;
+        Some((t.estimate_s[k] - t.truth_s[k]).abs() / t.std_s[k])
+    });
+    let measured = ratios
+        .into_iter()
+        .collect::<Option<Vec<f64>>>()
+        .map(median_with_infinity);
+    Row {
+        name: "aekf17_hover",
+        criterion: "AEKF17, 60 s hover, true 0.2 s: |final error| / final sigma (median)",
+        measured,
+        limit: Limit::Max(3.0),
+    }
+}
+
+/// The suite's JSON document.
+pub fn to_json(rows: &[Row], options: &SuiteOptions) -> Value {
+    json!({
+        "suite": "delay (issue 11)",
+        "seeds": options.seeds,
+        "coverage_seeds": options.coverage_seeds,
+        "run_s": RUN_S,
+        "score_from_s": SCORE_FROM_S,
+        "delay_scenarios": rows.iter().map(Row::to_json).collect::<Vec<_>>(),
+    })
+}

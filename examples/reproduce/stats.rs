@@ -1,0 +1,61 @@
+//! Monte Carlo statistics of the harness.
+//!
+//! - **Confidence interval of a figure**: the Student t-interval of the mean
+//!   over the seeds, `mean ± t_{0.975, n-1} s / sqrt(n)` with `s` the sample
+//!   standard deviation (seeds are independent runs; a figure is one run's
+//!   RMSE, close enough to normal over 20 seeds for the interval to hold).
+//! - **Chi-square band**: a consistent filter's NEES (or NIS) of `d` degrees
+//!   of freedom is chi-square with `d` degrees; the average of `n`
+//!   independent ones lies, with 95 % probability, in
+//!   `[chi2_{0.025}(n d) / n, chi2_{0.975}(n d) / n]` (Bar-Shalom, Li and
+//!   Kirubarajan, *Estimation with Applications to Tracking and Navigation*,
+//!   sec. 5.4).
+
+use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+
+/// Mean of the values and the 95 % t-interval of the mean, `(mean, lo, hi)`.
+/// NaN everywhere when a value is not finite (a failed run shows); the
+/// interval is NaN with fewer than two values.
+pub fn mean_ci95(xs: &[f64]) -> (f64, f64, f64) {
+    if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {
+        return (f64::NAN, f64::NAN, f64::NAN);
+    }
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    if xs.len() < 2 {
+        return (mean, f64::NAN, f64::NAN);
+    }
+    let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let t = StudentsT::new(0.0, 1.0, n - 1.0).map_or(f64::NAN, |d| d.inverse_cdf(0.975));
+    let half = t * (var / n).sqrt();
+    (mean, mean - half, mean + half)
+}
+
+/// The 95 % band of the average of `count` independent chi-square variables
+/// of `dof` degrees each, `(lo, hi)`.
+pub fn chi2_band95(dof: usize, count: usize) -> (f64, f64) {
+    let k = (dof * count) as f64;
+    match ChiSquared::new(k) {
+        Ok(d) if count > 0 => (
+            d.inverse_cdf(0.025) / count as f64,
+            d.inverse_cdf(0.975) / count as f64,
+        ),
+        _ => (f64::NAN, f64::NAN),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn t_interval_and_chi_square_band_match_tables() {
+        // t_{0.975, 4} = 2.776; chi2_{0.025, 6} = 1.237, chi2_{0.975, 6} = 14.449.
+        let (m, lo, hi) = mean_ci95(&[1.0, 2.0, 3.0, 4.0, 5.0]);
+        assert!((m - 3.0).abs() < 1e-12);
+        assert!((hi - m - 2.776 * (2.5f64 / 5.0).sqrt()).abs() < 1e-3);
+        assert!((m - lo - (hi - m)).abs() < 1e-12);
+        let (lo, hi) = chi2_band95(6, 1);
+        assert!((lo - 1.237).abs() < 1e-3 && (hi - 14.449).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,515 @@
+//! The linearized bound of a run: the covariance of an extended Kalman filter
+//! linearized about the **true** trajectory, with the true noise.
+//!
+//! Any estimator on a simulated run is judged against what the run's
+//! sensors allow. [`noise_floor`](super::noise_floor()) answers that for
+//! hover with known biases; this module answers it for the run itself: the
+//! same trajectory, the same sample and fix times, the same delay, biases to
+//! estimate.
+//!
+//! # Model
+//! Error state (15), attitude as the NED rotation vector of the error
+//! `R_est R^T = exp([phi]x)` (the error [`tilt_heading_error_rad`] scores),
+//! biases in body FRD:
+//!
+//! ```text
+//! x = [phi, dp, dv, db_a, db_g]
+//! phi' = -R db_g + R n_g
+//! dp'  = dv
+//! dv'  = -[f_n]x phi - R db_a + R n_a
+//! db_a' = w_a,  db_g' = w_g
+//! ```
+//!
+//! `R` is the true body-to-NED rotation and `f_n = a - [0, 0, g]` the true
+//! specific force in NED, both at the start of each IMU step: the Jacobians
+//! are evaluated on the truth, so no estimation error feeds back. Per IMU
+//! step of `dt` seconds, with `F` the matrix above,
+//!
+//! ```text
+//! Phi   = I + F dt + F² dt²/2 + F³ dt³/6
+//! Gamma = (I dt + F dt²/2 + F² dt³/6) G        (G maps n_g, n_a into phi', dv')
+//! P    <- Phi P Phi^T + Gamma diag(s_g², s_a²) Gamma^T + diag(0, 0, 0, q_a dt, q_g dt)
+//! ```
+//!
+//! with `s_g²`, `s_a²` the per-sample variances of the simulator's gyro and
+//! accelerometer noise and `q_a`, `q_g` its bias random walks (the same
+//! discretization as [`noise_floor`](super::noise_floor()), which this
+//! reduces to at hover with the biases known).
+//!
+//! Measurements, with the simulator's own variances:
+//!
+//! - GPS position and velocity, `H = [0 I 0 0 0; 0 0 I 0 0]`, fused at the
+//!   instant the fix describes (`t - tau`, the true delay);
+//! - the magnetometer ([`BoundMagnetometer`]): by default the whole field,
+//!   `m_b = R^T m_n + n_m`, `H = [R^T [m_n]x, 0...]`, variance `s_m²` per
+//!   axis: two degrees of attitude, tilt included (the crate's filters also
+//!   take tilt from it: their heading update is tilt-coupled,
+//!   `Ekf16Config::mag_corrects_tilt`); or a heading alone,
+//!   `H = [tan(theta) cos(psi), tan(theta) sin(psi), 1, 0...]` (the ZYX yaw
+//!   change of a rotation-vector error `phi`), variance `s_m² / cos² I`, the
+//!   model of [`noise_floor`](super::noise_floor()).
+//!
+//! # Causality
+//! A fix received at `t` describes `t - tau`, so at time `t` the best any
+//! filter can know is the covariance after the fixes *received* by `t`. The
+//! bound runs a chain at validity time, fusing each fix at the IMU sample at
+//! or before `t - tau`, and when a fix arrives re-propagates a copy of that
+//! chain to the present through the buffered truth (magnetometer included):
+//! the per-time bound is that present covariance, evaluated at every IMU
+//! sample after the fixes received strictly before it.
+//!
+//! # What it bounds
+//! The covariance is the error covariance of the linear(ized) optimal filter
+//! for this run; no causal estimator that uses the same measurements can do
+//! better in expectation, to first order in the errors. It does not include
+//! the delay's own uncertainty (known delay), so it is a bound for every
+//! estimator, not a prediction of any. The per-time RMS bounds are
+//! square roots of the relevant covariance sums: tilt
+//! `sqrt(P_phiN + P_phiE)`, heading `sqrt(P_phiD)`, 3-D velocity and
+//! position `sqrt(trace)`; Euler angles through the ZYX map from `phi`.
+//!
+//! [`tilt_heading_error_rad`]: super::tilt_heading_error_rad
+
+use super::{STANDARD_GRAVITY, SensorConfig, SimConfig, SimEvent};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+/// Size of the error state.
+const N: usize = 15;
+/// Index of the attitude error.
+const PHI: usize = 0;
+/// Index of the position error.
+const POS: usize = 3;
+/// Index of the velocity error.
+const VEL: usize = 6;
+/// Index of the accelerometer bias error.
+const BA: usize = 9;
+/// Index of the gyro bias error.
+const BG: usize = 12;
+
+type Cov = SMatrix<f64, N, N>;
+
+/// What the bound's filter takes from the magnetometer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoundMagnetometer {
+    /// The whole field: heading and tilt (module docs).
+    Field,
+    /// The tilt-compensated heading only, as [`noise_floor`](super::noise_floor()) models it.
+    Heading,
+}
+
+/// Prior of the bound's filter (standard deviations at the first IMU
+/// sample) and its use of the magnetometer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundConfig {
+    /// What the magnetometer contributes.
+    pub magnetometer: BoundMagnetometer,
+    /// Tilt, per horizontal axis, radians.
+    pub tilt_std_rad: f64,
+    /// Heading, radians.
+    pub heading_std_rad: f64,
+    /// Position, per axis, metres.
+    pub position_std_m: f64,
+    /// Velocity, per axis, m/s.
+    pub velocity_std_m_s: f64,
+    /// Accelerometer bias, per axis, m/s^2.
+    pub accel_bias_std_m_s2: f64,
+    /// Gyro bias, per axis, rad/s.
+    pub gyro_bias_std_rad_s: f64,
+}
+
+impl BoundConfig {
+    /// The prior the crate's filters start from on a simulated run: biases
+    /// with the spread of the simulator's uniform draw (`max / sqrt(3)`),
+    /// tilt and heading 0.1 and 0.5 rad, position and velocity the GPS's
+    /// own noise; the whole magnetometer field.
+    pub fn for_sensors(sensors: &SensorConfig) -> Self {
+        Self {
+            magnetometer: BoundMagnetometer::Field,
+            tilt_std_rad: 0.1,
+            heading_std_rad: 0.5,
+            position_std_m: sensors.gps_position_var_m2.sqrt().max(0.1),
+            velocity_std_m_s: sensors.gps_velocity_var_m2_s2.sqrt().max(0.01),
+            accel_bias_std_m_s2: sensors.accel_bias_max_m_s2() / 3f64.sqrt(),
+            gyro_bias_std_rad_s: sensors.gyro_bias_max_rad_s / 3f64.sqrt(),
+        }
+    }
+
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), crate::Error> {
+        let fields = [
+            ("tilt_std_rad", self.tilt_std_rad),
+            ("heading_std_rad", self.heading_std_rad),
+            ("position_std_m", self.position_std_m),
+            ("velocity_std_m_s", self.velocity_std_m_s),
+            ("accel_bias_std_m_s2", self.accel_bias_std_m_s2),
+            ("gyro_bias_std_rad_s", self.gyro_bias_std_rad_s),
+        ];
+        for (field, x) in fields {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(crate::Error::InvalidConfig {
+                    field,
+                    reason: "must be finite and non-negative",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Standard deviations (RMS bounds) of the scored figures: at one instant
+/// ([`BoundSample`]) or as the RMS over time of a run
+/// ([`TrajectoryBound::rms_after`], the square root of the mean variance).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundRms {
+    /// Tilt, radians.
+    pub tilt_rad: f64,
+    /// Heading (down component of the rotation-vector error), radians.
+    pub heading_rad: f64,
+    /// Roll, pitch, yaw (ZYX), radians.
+    pub euler_rad: Vector3<f64>,
+    /// 3-D velocity error norm, m/s.
+    pub velocity_m_s: f64,
+    /// 3-D position error norm, metres.
+    pub position_m: f64,
+    /// Accelerometer bias per body axis, m/s^2.
+    pub accel_bias_m_s2: Vector3<f64>,
+    /// Gyro bias per body axis, rad/s.
+    pub gyro_bias_rad_s: Vector3<f64>,
+}
+
+/// The bound at one IMU sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundSample {
+    /// Time, microseconds.
+    pub t_us: u64,
+    /// The standard deviations at that time.
+    pub std: BoundRms,
+}
+
+/// The per-time bound of a run, one sample per IMU sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajectoryBound {
+    /// The bound at every IMU sample, in time order.
+    pub samples: Vec<BoundSample>,
+}
+
+impl TrajectoryBound {
+    /// RMS over the samples at or after `skip_us`; `None` when there is none.
+    pub fn rms_after(&self, skip_us: u64) -> Option<BoundRms> {
+        let counted: Vec<&BoundSample> =
+            self.samples.iter().filter(|s| s.t_us >= skip_us).collect();
+        if counted.is_empty() {
+            return None;
+        }
+        let n = counted.len() as f64;
+        let rms = |f: &dyn Fn(&BoundRms) -> f64| {
+            (counted.iter().map(|s| f(&s.std).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let rms3 =
+            |f: &dyn Fn(&BoundRms) -> Vector3<f64>| Vector3::from_fn(|i, _| rms(&|s| f(s)[i]));
+        Some(BoundRms {
+            tilt_rad: rms(&|s| s.tilt_rad),
+            heading_rad: rms(&|s| s.heading_rad),
+            euler_rad: rms3(&|s| s.euler_rad),
+            velocity_m_s: rms(&|s| s.velocity_m_s),
+            position_m: rms(&|s| s.position_m),
+            accel_bias_m_s2: rms3(&|s| s.accel_bias_m_s2),
+            gyro_bias_rad_s: rms3(&|s| s.gyro_bias_rad_s),
+        })
+    }
+}
+
+/// The truth at one IMU sample, as the bound's Jacobians need it.
+struct Step {
+    t_us: u64,
+    rotation: Matrix3<f64>,
+    specific_force_ned: Vector3<f64>,
+    euler: Vector3<f64>,
+    /// Magnetometer samples fused at this step.
+    mags: usize,
+}
+
+fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// The bound's filter: its noise, and the covariance steps.
+struct Model {
+    var_g: f64,
+    var_a: f64,
+    walk_a: f64,
+    walk_g: f64,
+    var_p: f64,
+    var_v: f64,
+    var_heading: f64,
+    var_field: f64,
+    field_ned: Vector3<f64>,
+    magnetometer: BoundMagnetometer,
+}
+
+impl Model {
+    /// Propagates `p` over the step from `from` (Jacobians at `from`) to `to_us`.
+    fn propagate(&self, p: &mut Cov, from: &Step, to_us: u64) {
+        let dt = to_us.saturating_sub(from.t_us) as f64 * 1e-6;
+        if dt <= 0.0 {
+            return;
+        }
+        let r = from.rotation;
+        let fx = skew(&from.specific_force_ned);
+        let fxr = fx * r;
+        let (dt2, dt3) = (dt * dt / 2.0, dt.powi(3) / 6.0);
+        // Phi = I + F dt + F² dt²/2 + F³ dt³/6, written by blocks (F is
+        // nilpotent: F² and F³ have the few blocks below).
+        let mut phi = Cov::identity();
+        phi.fixed_view_mut::<3, 3>(PHI, BG).copy_from(&(-r * dt));
+        phi.fixed_view_mut::<3, 3>(POS, VEL)
+            .copy_from(&(Matrix3::identity() * dt));
+        phi.fixed_view_mut::<3, 3>(POS, PHI).copy_from(&(-fx * dt2));
+        phi.fixed_view_mut::<3, 3>(POS, BA).copy_from(&(-r * dt2));
+        phi.fixed_view_mut::<3, 3>(POS, BG).copy_from(&(fxr * dt3));
+        phi.fixed_view_mut::<3, 3>(VEL, PHI).copy_from(&(-fx * dt));
+        phi.fixed_view_mut::<3, 3>(VEL, BA).copy_from(&(-r * dt));
+        phi.fixed_view_mut::<3, 3>(VEL, BG).copy_from(&(fxr * dt2));
+        // Gamma = (I dt + F dt²/2 + F² dt³/6) G: gyro noise, then accelerometer.
+        let mut gamma = SMatrix::<f64, N, 6>::zeros();
+        gamma.fixed_view_mut::<3, 3>(PHI, 0).copy_from(&(r * dt));
+        gamma
+            .fixed_view_mut::<3, 3>(VEL, 0)
+            .copy_from(&(-fxr * dt2));
+        gamma
+            .fixed_view_mut::<3, 3>(POS, 0)
+            .copy_from(&(-fxr * dt3));
+        gamma.fixed_view_mut::<3, 3>(VEL, 3).copy_from(&(r * dt));
+        gamma.fixed_view_mut::<3, 3>(POS, 3).copy_from(&(r * dt2));
+        let mut noise = SVector::<f64, 6>::zeros();
+        noise.fixed_rows_mut::<3>(0).fill(self.var_g);
+        noise.fixed_rows_mut::<3>(3).fill(self.var_a);
+        let scaled = gamma * SMatrix::<f64, 6, 6>::from_diagonal(&noise);
+        *p = phi * *p * phi.transpose() + scaled * gamma.transpose();
+        for i in 0..3 {
+            p[(BA + i, BA + i)] += self.walk_a * dt;
+            p[(BG + i, BG + i)] += self.walk_g * dt;
+        }
+    }
+
+    /// Fuses a GPS fix (position and velocity) into `p`.
+    fn fuse_gps(&self, p: &mut Cov) {
+        let mut s = p.fixed_view::<6, 6>(POS, POS).into_owned();
+        for i in 0..3 {
+            s[(i, i)] += self.var_p;
+            s[(3 + i, 3 + i)] += self.var_v;
+        }
+        let Some(chol) = s.cholesky() else {
+            return;
+        };
+        let ph = p.fixed_columns::<6>(POS).into_owned();
+        let k = chol.solve(&ph.transpose());
+        *p -= ph * k;
+        symmetrize(p);
+    }
+
+    /// Fuses one magnetometer sample at the attitude of `step` into `p`.
+    fn fuse_mag(&self, p: &mut Cov, step: &Step) {
+        match self.magnetometer {
+            BoundMagnetometer::Field => self.fuse_field(p, step),
+            BoundMagnetometer::Heading => self.fuse_heading(p, step),
+        }
+    }
+
+    /// Fuses the whole field: `H = R^T [m_n]x` on the attitude error.
+    fn fuse_field(&self, p: &mut Cov, step: &Step) {
+        let h_att = step.rotation.transpose() * skew(&self.field_ned);
+        let p_att = p.fixed_rows::<3>(PHI).into_owned();
+        // H P = h_att P[PHI rows]; S = H P H^T + R.
+        let hp = h_att * p_att;
+        let mut s = hp.fixed_columns::<3>(PHI) * h_att.transpose();
+        for i in 0..3 {
+            s[(i, i)] += self.var_field;
+        }
+        let Some(chol) = s.cholesky() else {
+            return;
+        };
+        let k_t = chol.solve(&hp);
+        *p -= hp.transpose() * k_t;
+        symmetrize(p);
+    }
+
+    /// Fuses a magnetometer heading at the attitude of `step` into `p`.
+    fn fuse_heading(&self, p: &mut Cov, step: &Step) {
+        let (pitch, yaw) = (step.euler.y, step.euler.z);
+        let t = pitch.tan();
+        let mut h = SVector::<f64, N>::zeros();
+        h[PHI] = t * yaw.cos();
+        h[PHI + 1] = t * yaw.sin();
+        h[PHI + 2] = 1.0;
+        let ph = *p * h;
+        let s = h.dot(&ph) + self.var_heading;
+        if !(s.is_finite() && s > 0.0) {
+            return;
+        }
+        *p -= ph * ph.transpose() / s;
+        symmetrize(p);
+    }
+
+    /// Propagates `p` from step `from` to step `to` (indices), fusing the
+    /// magnetometer samples of every step reached.
+    fn advance(&self, p: &mut Cov, steps: &[Step], from: usize, to: usize) {
+        for k in from + 1..=to {
+            self.propagate(p, &steps[k - 1], steps[k].t_us);
+            for _ in 0..steps[k].mags {
+                self.fuse_mag(p, &steps[k]);
+            }
+        }
+    }
+}
+
+fn symmetrize(p: &mut Cov) {
+    *p = (*p + p.transpose()) * 0.5;
+}
+
+/// The bound at one step from the present covariance.
+fn sample(p: &Cov, step: &Step) -> BoundSample {
+    let att = p.fixed_view::<3, 3>(PHI, PHI).into_owned();
+    let (pitch, yaw) = (step.euler.y, step.euler.z);
+    // Columns: NED rotation vector of a unit roll, pitch and yaw change (ZYX).
+    let a = Matrix3::new(
+        yaw.cos() * pitch.cos(),
+        -yaw.sin(),
+        0.0,
+        yaw.sin() * pitch.cos(),
+        yaw.cos(),
+        0.0,
+        -pitch.sin(),
+        0.0,
+        1.0,
+    );
+    let euler = a.try_inverse().map_or(Vector3::repeat(f64::NAN), |ai| {
+        (ai * att * ai.transpose())
+            .diagonal()
+            .map(|v| v.max(0.0).sqrt())
+    });
+    let diag = |i: usize| Vector3::new(p[(i, i)], p[(i + 1, i + 1)], p[(i + 2, i + 2)]);
+    let sum = |i: usize| diag(i).sum().max(0.0).sqrt();
+    BoundSample {
+        t_us: step.t_us,
+        std: BoundRms {
+            tilt_rad: (att[(0, 0)] + att[(1, 1)]).max(0.0).sqrt(),
+            heading_rad: att[(2, 2)].max(0.0).sqrt(),
+            euler_rad: euler,
+            velocity_m_s: sum(VEL),
+            position_m: sum(POS),
+            accel_bias_m_s2: diag(BA).map(|v| v.max(0.0).sqrt()),
+            gyro_bias_rad_s: diag(BG).map(|v| v.max(0.0).sqrt()),
+        },
+    }
+}
+
+/// The linearized bound of a simulated run (module docs): one
+/// [`BoundSample`] per IMU sample of `events` (a run of `config`, in time
+/// order, as [`Simulation`](super::Simulation) yields it).
+///
+/// Fails on an invalid `bound` prior or simulation configuration; a run
+/// without IMU samples gives an empty bound.
+pub fn trajectory_bound(
+    events: &[SimEvent],
+    config: &SimConfig,
+    bound: &BoundConfig,
+) -> Result<TrajectoryBound, crate::Error> {
+    config.validate()?;
+    bound.validate()?;
+    let sensors = &config.sensors;
+    let mut steps: Vec<Step> = Vec::new();
+    // Fixes as (receive time, index of the IMU step at or before validity).
+    let mut fixes: Vec<(u64, usize)> = Vec::new();
+    let mut pending_fixes: Vec<(u64, u64)> = Vec::new();
+    for event in events {
+        match event {
+            SimEvent::Imu { truth, .. } => steps.push(Step {
+                t_us: truth.t_us,
+                rotation: *truth.attitude.to_rotation_matrix().matrix(),
+                specific_force_ned: truth.accel_m_s2 - Vector3::new(0.0, 0.0, STANDARD_GRAVITY),
+                euler: truth.euler_rad,
+                mags: 0,
+            }),
+            SimEvent::Mag(_) => {
+                if let Some(last) = steps.last_mut() {
+                    last.mags += 1;
+                }
+            }
+            SimEvent::Gps { fix, delay_s, .. } => {
+                let delay_us = (delay_s * 1e6).round().max(0.0) as u64;
+                pending_fixes.push((fix.t_us, fix.t_us.saturating_sub(delay_us)));
+            }
+        }
+    }
+    if steps.is_empty() {
+        return Ok(TrajectoryBound {
+            samples: Vec::new(),
+        });
+    }
+    for (received, valid) in pending_fixes {
+        if valid < steps[0].t_us {
+            continue;
+        }
+        let index = steps.partition_point(|s| s.t_us <= valid) - 1;
+        fixes.push((received, index));
+    }
+    let model = Model {
+        var_g: sensors.gyro_noise_var_rad2_s2,
+        var_a: sensors.accel_noise_std_m_s2().powi(2),
+        walk_a: sensors.accel_bias_walk_m_s2_sqrt_s.powi(2),
+        walk_g: sensors.gyro_bias_walk_rad_s_sqrt_s.powi(2),
+        var_p: sensors.gps_position_var_m2,
+        var_v: sensors.gps_velocity_var_m2_s2,
+        var_heading: sensors.mag_noise_var / sensors.inclination_rad.cos().powi(2),
+        var_field: sensors.mag_noise_var,
+        field_ned: super::field_ned(sensors.inclination_rad, sensors.declination_rad),
+        magnetometer: bound.magnetometer,
+    };
+    let mut p0 = Cov::zeros();
+    let b = bound;
+    let prior = [
+        (PHI, b.tilt_std_rad),
+        (PHI + 1, b.tilt_std_rad),
+        (PHI + 2, b.heading_std_rad),
+    ]
+    .into_iter()
+    .chain((0..3).map(|i| (POS + i, b.position_std_m)))
+    .chain((0..3).map(|i| (VEL + i, b.velocity_std_m_s)))
+    .chain((0..3).map(|i| (BA + i, b.accel_bias_std_m_s2)))
+    .chain((0..3).map(|i| (BG + i, b.gyro_bias_std_rad_s)));
+    for (i, std) in prior {
+        p0[(i, i)] = std * std;
+    }
+    for _ in 0..steps[0].mags {
+        model.fuse_mag(&mut p0, &steps[0]);
+    }
+    // Validity chain (at `valid_index`) and present chain (at `k`).
+    let mut valid = p0;
+    let mut valid_index = 0usize;
+    let mut present = p0;
+    let mut next_fix = 0usize;
+    let mut samples = Vec::with_capacity(steps.len());
+    samples.push(sample(&present, &steps[0]));
+    for k in 1..steps.len() {
+        model.advance(&mut present, &steps, k - 1, k);
+        let mut arrived = false;
+        while let Some(&(received, index)) = fixes.get(next_fix) {
+            if received >= steps[k].t_us {
+                break;
+            }
+            let index = index.max(valid_index);
+            model.advance(&mut valid, &steps, valid_index, index);
+            valid_index = index;
+            model.fuse_gps(&mut valid);
+            next_fix += 1;
+            arrived = true;
+        }
+        if arrived {
+            present = valid;
+            model.advance(&mut present, &steps, valid_index, k);
+        }
+        samples.push(sample(&present, &steps[k]));
+    }
+    Ok(TrajectoryBound { samples })
+}
