@@ -11,8 +11,8 @@ use delaynav::geo::{
     tilt_compensated_heading, wrap_pi,
 };
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Geodetic, Gps, GpsOutcome,
-    GpsPosition, Imu, Mag, MagOutcome, NavState, Navigator, Scalar,
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, FusionRecord, Geodetic, Gps,
+    GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -1051,6 +1051,27 @@ macro_rules! ekf16_tests {
                 assert!((position.innovation.z + lit(1.0)).abs() < lit(1e-3));
             }
 
+            /// Pushes, at t = 1 ms, the noise-free field of a vehicle at
+            /// this attitude (rad): the record of the magnetometer update.
+            fn mag_seen_at(
+                ekf: &mut Ekf16<T>,
+                roll: f64,
+                pitch: f64,
+                yaw: f64,
+            ) -> FusionRecord<T, 3> {
+                let seen = quaternion_from_euler(roll, pitch, yaw);
+                let m_b = rotation_matrix(seen.quaternion()).transpose()
+                    * magnetic_field_ned(INCLINATION, DECLINATION);
+                let field_body = v3(&m_b);
+                match ekf.push_mag(&Mag {
+                    t_us: 1_000,
+                    field_body,
+                }) {
+                    Ok(MagOutcome::Fused(rec)) => rec,
+                    other => panic!("expected a fusion, got {other:?}"),
+                }
+            }
+
             /// At rest at the origin with this attitude (rad), biases 0.
             fn at_rest(roll: f64, pitch: f64, yaw: f64) -> NavState<T> {
                 NavState {
@@ -1083,18 +1104,7 @@ macro_rules! ekf16_tests {
                 let mut ekf =
                     Ekf16::from_state_with_covariance(yaw_only, 1_000, &start, &p).unwrap();
                 // The magnetometer sees the vehicle 20 deg further right.
-                let seen = quaternion_from_euler(roll, pitch, yaw + 0.35);
-                let m_b = rotation_matrix(seen.quaternion()).transpose()
-                    * magnetic_field_ned(INCLINATION, DECLINATION);
-                let MagOutcome::Fused(rec) = ekf
-                    .push_mag(&Mag {
-                        t_us: 1_000,
-                        field_body: v3(&m_b),
-                    })
-                    .unwrap()
-                else {
-                    panic!("expected a fusion")
-                };
+                let rec = mag_seen_at(&mut ekf, roll, pitch, yaw + 0.35);
                 assert!(rec.fused, "test ratio {}", rec.test_ratio.as_f64());
                 let e = to_f64(&ekf.estimate().unwrap().euler_rad());
                 let moved = wrap_pi(e.z - yaw);
@@ -1128,9 +1138,6 @@ macro_rules! ekf16_tests {
                 let down_before =
                     rotation_matrix(start.attitude.quaternion()).transpose() * Vector3::z();
                 // The magnetometer sees the vehicle 60 deg further right.
-                let seen = quaternion_from_euler(roll, pitch, yaw + 60f64.to_radians());
-                let m_b = rotation_matrix(seen.quaternion()).transpose()
-                    * magnetic_field_ned(INCLINATION, DECLINATION);
                 // Heading only from the start (no alignment exception), gate open.
                 let run = |alignment_std: f64| {
                     let c = Ekf16Config {
@@ -1140,16 +1147,7 @@ macro_rules! ekf16_tests {
                     };
                     assert!(!c.mag_corrects_tilt, "heading-only is the default");
                     let mut ekf = Ekf16::from_state_with_covariance(c, 1_000, &start, &p).unwrap();
-                    let MagOutcome::Fused(rec) = ekf
-                        .push_mag(&Mag {
-                            t_us: 1_000,
-                            field_body: v3(&m_b),
-                        })
-                        .unwrap()
-                    else {
-                        panic!("expected a fusion")
-                    };
-                    assert!(rec.fused);
+                    assert!(mag_seen_at(&mut ekf, roll, pitch, yaw + 60f64.to_radians()).fused);
                     let e = ekf.estimate().unwrap();
                     let down_after =
                         rotation_matrix(e.attitude.quaternion()).transpose() * Vector3::z();
