@@ -1,0 +1,1061 @@
+//! A proptest state machine over the push API of every estimator (issue 10,
+//! item 9), in `f32` and `f64`.
+//!
+//! Each case is a plausible start (an optional calm flight of up to 2 s, so
+//! that most cases reach an aligned state) followed by a random list of
+//! operations applied in order: IMU, GPS (NED or geodetic, with or without
+//! reported accuracies), magnetometer, `estimate`, `reset` (the navigator
+//! only) and more calm flight. Values mix plausible ones with hostile ones
+//! (NaN, ±inf, 1e30, `f32::MAX`, zero, negative and tiny accuracies); times
+//! step on from a cursor (small steps, gaps, a minute; hours in the full
+//! machines), repeat, go back (small and hours) or jump to 0 (`u64::MAX` or
+//! anywhere in the full machines).
+//!
+//! After every call:
+//! - nothing panicked (proptest reports a panic as a failure);
+//! - when `estimate()` is `Some`: quaternion, position, velocity, biases,
+//!   covariance diagonal and delay are finite, the quaternion is unit within
+//!   `1e-3` and the covariance diagonal is not negative; the filter's own
+//!   state vector and full covariance are finite;
+//! - every refusal of the call (an `Err`, a GPS block or a magnetometer
+//!   update not fused) raised the sum of the estimator's refusal counters by
+//!   at least one ([`RefusalCounters`]; for the navigator also
+//!   [`NavRefusals`]).
+//!
+//! A failing case is shrunk by proptest, then by dropping operations one at
+//! a time ([`minimize`]), and printed as `start` and `ops`.
+//!
+//! Four known bugs, each kept as an ignored test with its minimal input, are
+//! left out of the default machines:
+//! - long IMU gaps ([`long_imu_gap`]): no jump ahead beyond 1 min, no
+//!   `u64::MAX` or random absolute stamps after the clock started
+//!   (`u64::MAX` stamps are in [`u64_max_stamps_then_back`] and
+//!   [`nav_estimated_imu_near_u64_max`]);
+//! - tiny reported accuracies ([`tiny_speed_accuracy`]): no 1e-20 or 1e-6;
+//! - NED fixes at the largest floats ([`nav_huge_ned_fix`]): no `f32::MAX`
+//!   or `f64::MAX` in GPS positions (1e30 stays);
+//! - the navigator's EKF counters going back to zero
+//!   ([`nav_keeps_ekf_refusals`]): tolerated by re-counting from the rebuilt
+//!   EKF.
+//!
+//! The ignored `full_machine_*` tests run without these allowances
+//! (`cargo test --all-features --test push_api -- --ignored`).
+//!
+//! `PROPTEST_CASES` raises the case count (default [`DEFAULT_CASES`]).
+
+use delaynav::ekf16::state::StateVector;
+use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, NavRefusals};
+use delaynav::{
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Estimate, Geodetic, Gps, GpsOutcome,
+    GpsPosition, Imu, Mag, MagOutcome, Navigator, RefusalCounters, Scalar,
+};
+use nalgebra::{DMatrix, Vector3};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, TestCaseError, TestError, TestRunner};
+
+/// Cases per estimator and precision unless `PROPTEST_CASES` says otherwise.
+const DEFAULT_CASES: u32 = 128;
+/// IMU period of the calm flight, µs (1 kHz, the navigator's configured rate).
+const IMU_PERIOD_US: u64 = 1_000;
+/// GPS delay of the calm flight, µs.
+const GPS_DELAY_US: u64 = 100_000;
+/// Quaternion norm tolerance.
+const UNIT_TOLERANCE: f64 = 1e-3;
+const GRAVITY: f64 = 9.806_65;
+
+/// Where a sample's time comes from, relative to the newest time pushed.
+#[derive(Debug, Clone, Copy)]
+enum Time {
+    /// `cursor + dt` (saturating).
+    After(u64),
+    /// The same time again (a duplicate).
+    Same,
+    /// `cursor - dt` (saturating).
+    Before(u64),
+    /// An absolute time.
+    At(u64),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Position {
+    Ned([f64; 3]),
+    Geodetic([f64; 3]),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Op {
+    Imu {
+        t: Time,
+        gyro: [f64; 3],
+        accel: [f64; 3],
+    },
+    Gps {
+        t: Time,
+        position: Position,
+        velocity: [f64; 3],
+        accuracy: [Option<f64>; 3],
+    },
+    Mag {
+        t: Time,
+        field: [f64; 3],
+    },
+    Estimate,
+    Reset,
+    /// Plausible flight for this many ms from the cursor.
+    Calm(u32),
+}
+
+/// Time steps; `full` adds jumps ahead of an hour and more (1 h, 10 h,
+/// `u64::MAX`, anywhere), which the known bug of [`long_imu_gap`] trips
+/// (without, jumps ahead stop at 1 min).
+fn time(full: bool) -> impl Strategy<Value = Time> {
+    let anywhere = if full {
+        prop_oneof![Just(0u64), Just(u64::MAX), Just(u64::MAX - 1), any::<u64>()].boxed()
+    } else {
+        Just(0u64).boxed()
+    };
+    let hours_ahead = if full {
+        prop_oneof![Just(3_600_000_000u64), Just(36_000_000_000)].boxed()
+    } else {
+        Just(60_000_000u64).boxed()
+    };
+    prop_oneof![
+        12 => (1u64..=20_000).prop_map(Time::After),
+        2 => (20_001u64..=2_000_000).prop_map(Time::After),
+        1 => hours_ahead.prop_map(Time::After),
+        2 => Just(Time::Same),
+        2 => (1u64..=50_000).prop_map(Time::Before),
+        1 => prop_oneof![Just(1_000_000u64), Just(3_600_000_000)].prop_map(Time::Before),
+        1 => anywhere.prop_map(Time::At),
+    ]
+}
+
+/// A value no sensor should report; `max` adds the largest floats
+/// (`f32::MAX`, `f64::MAX`).
+fn hostile(max: bool) -> impl Strategy<Value = f64> {
+    let values = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e30,
+        -1e30,
+        0.0,
+        1e-30,
+        1e4 + 1.0,
+    ];
+    let largest = [f32::MAX as f64, -(f32::MAX as f64), f64::MAX];
+    let n = values.len() + if max { largest.len() } else { 0 };
+    (0..n).prop_map(move |i| {
+        values
+            .get(i)
+            .copied()
+            .unwrap_or_else(|| largest[i - values.len()])
+    })
+}
+
+/// `center ± spread` per axis, each axis hostile one time in twenty.
+fn vec3(center: [f64; 3], spread: f64, max: bool) -> impl Strategy<Value = [f64; 3]> {
+    let axis = move |c: f64| prop_oneof![19 => (c - spread)..=(c + spread), 1 => hostile(max)];
+    (axis(center[0]), axis(center[1]), axis(center[2])).prop_map(|(x, y, z)| [x, y, z])
+}
+
+/// A reported accuracy: absent, plausible, or not; `tiny` adds 1e-20 and
+/// 1e-6, which the known bug of [`tiny_speed_accuracy`] trips.
+fn accuracy(tiny: bool) -> impl Strategy<Value = Option<f64>> {
+    let mut bad = vec![
+        0.0,
+        -1.0,
+        f64::NAN,
+        f64::INFINITY,
+        1e12,
+        1e30,
+        f32::MAX as f64,
+        1e4,
+    ];
+    if tiny {
+        bad.extend([1e-20, 1e-6]);
+    }
+    prop_oneof![
+        6 => Just(None),
+        4 => (0.05f64..10.0).prop_map(Some),
+        1 => prop::sample::select(bad).prop_map(Some),
+    ]
+}
+
+/// A fix's position; `full` adds the largest floats to NED positions, which
+/// the known bug of [`nav_huge_ned_fix`] trips.
+fn position(full: bool) -> impl Strategy<Value = Position> {
+    prop_oneof![
+        3 => vec3([0.0, 0.0, 0.0], 100.0, full).prop_map(Position::Ned),
+        1 => (
+            prop_oneof![9 => 46.999f64..47.001, 1 => prop_oneof![Just(91.0), Just(-90.0), Just(f64::NAN), Just(1e30)]],
+            prop_oneof![9 => 7.999f64..8.001, 1 => prop_oneof![Just(361.0), Just(-180.0), Just(f64::INFINITY)]],
+            prop_oneof![9 => 390.0f64..410.0, 1 => prop_oneof![Just(1e30), Just(-1e7), Just(f64::NAN)]],
+        )
+            .prop_map(|(lat, lon, alt)| Position::Geodetic([lat, lon, alt])),
+    ]
+}
+
+fn op(full: bool) -> impl Strategy<Value = Op> {
+    let imu = (
+        time(full),
+        vec3([0.0; 3], 0.5, true),
+        vec3([0.0, 0.0, -GRAVITY], 2.0, true),
+    )
+        .prop_map(|(t, gyro, accel)| Op::Imu { t, gyro, accel });
+    let gps = (
+        time(full),
+        position(full),
+        vec3([0.0; 3], 5.0, true),
+        [accuracy(full), accuracy(full), accuracy(full)],
+    )
+        .prop_map(|(t, position, velocity, accuracy)| Op::Gps {
+            t,
+            position,
+            velocity,
+            accuracy,
+        });
+    let mag = (
+        time(full),
+        prop_oneof![19 => vec3([0.2, 0.0, 0.4], 0.1, true), 1 => Just([0.0; 3])],
+    )
+        .prop_map(|(t, field)| Op::Mag { t, field });
+    prop_oneof![
+        8 => imu,
+        4 => gps,
+        3 => mag,
+        1 => Just(Op::Estimate),
+        1 => Just(Op::Reset),
+        1 => (1u32..=400).prop_map(Op::Calm),
+    ]
+}
+
+/// An optional calm start, then the operations.
+fn case(full: bool) -> impl Strategy<Value = (Option<u32>, Vec<Op>)> {
+    (
+        prop::option::weighted(0.8, 300u32..=2_000),
+        prop::collection::vec(op(full), 0..60),
+    )
+}
+
+/// What the checks need from an estimator.
+trait Subject<T: Scalar>: Navigator<T> {
+    /// Sums of the refusal counters: the estimator's own and its (horizon)
+    /// EKF's; for the EKFs the first is 0.
+    fn refusal_sums(&self) -> (u64, u64);
+    /// The filter's raw state (16 navigation states) and full covariance.
+    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>);
+    /// `reset()` where the estimator has one (a no-op otherwise).
+    fn reset(&mut self) {}
+}
+
+/// Sum of the fields of a counters struct, destructured exhaustively: a new
+/// counter must be listed here or the file does not compile.
+macro_rules! field_sum {
+    ($value:expr, $ty:ident { $($field:ident),* $(,)? }) => {{
+        let $ty { $($field),* } = $value;
+        0u64 $(+ u64::from($field))*
+    }};
+}
+
+fn ekf_sum(c: &RefusalCounters) -> u64 {
+    field_sum!(
+        *c,
+        RefusalCounters {
+            imu_non_finite,
+            imu_out_of_range,
+            imu_time,
+            imu_step_too_long,
+            gps_invalid,
+            gps_time,
+            gps_position_rejected,
+            gps_velocity_rejected,
+            mag_invalid,
+            mag_time,
+            mag_rejected,
+            not_positive_definite,
+            gps_resets,
+        }
+    )
+}
+
+fn nav_sum(c: &NavRefusals) -> u64 {
+    field_sum!(
+        *c,
+        NavRefusals {
+            imu_non_finite,
+            imu_out_of_range,
+            imu_time,
+            imu_ahead,
+            imu_gap,
+            gps_invalid,
+            gps_time,
+            gps_accuracy,
+            gps_ahead,
+            gps_mixed_frames,
+            mag_invalid,
+            mag_time,
+            mag_ahead,
+            mag_dropped,
+            horizon_refused,
+            delay_loop_refused,
+        }
+    )
+}
+
+fn dynamic<T: Scalar, const N: usize>(p: &nalgebra::SMatrix<T, N, N>) -> DMatrix<T> {
+    DMatrix::from_iterator(N, N, p.iter().copied())
+}
+
+impl<T: Scalar> Subject<T> for Ekf16<T> {
+    fn refusal_sums(&self) -> (u64, u64) {
+        (0, ekf_sum(&self.refusals()))
+    }
+    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
+        (*self.state_vector(), dynamic(self.covariance()))
+    }
+}
+
+impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
+    fn refusal_sums(&self) -> (u64, u64) {
+        (0, ekf_sum(&self.refusals()))
+    }
+    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
+        let x = self.state_vector().fixed_rows::<16>(0).into_owned();
+        (x, dynamic(self.covariance()))
+    }
+}
+
+impl<T: Scalar> Subject<T> for DelayCompensatedNav<T> {
+    fn refusal_sums(&self) -> (u64, u64) {
+        (nav_sum(&self.refusals()), ekf_sum(&self.ekf_refusals()))
+    }
+    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
+        let ekf = self.horizon_filter();
+        (*ekf.state_vector(), dynamic(ekf.covariance()))
+    }
+    fn reset(&mut self) {
+        DelayCompensatedNav::reset(self);
+    }
+}
+
+/// Refusals a call's result stands for.
+fn refusals_of<R>(result: &Result<R, Error>, gated: impl Fn(&R) -> u64) -> u64 {
+    match result {
+        Err(_) => 1,
+        Ok(r) => gated(r),
+    }
+}
+
+fn gps_gated<T: Scalar>(o: &GpsOutcome<T>) -> u64 {
+    match o {
+        GpsOutcome::Fused { position, velocity } => {
+            u64::from(!position.fused) + u64::from(!velocity.fused)
+        }
+        _ => 0,
+    }
+}
+
+fn mag_gated<T: Scalar>(o: &MagOutcome<T>) -> u64 {
+    match o {
+        MagOutcome::Fused(r) => u64::from(!r.fused),
+        _ => 0,
+    }
+}
+
+fn finite<T: Scalar>(v: &[T]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+/// The state properties (module docs).
+fn check_state<T: Scalar, S: Subject<T>>(s: &S, what: &str) -> Result<(), TestCaseError> {
+    let Some(e): Option<Estimate<T>> = s.estimate() else {
+        return Ok(());
+    };
+    let q = e.attitude.quaternion().coords;
+    prop_assert!(finite(q.as_slice()), "{what}: quaternion {q:?}");
+    let norm = q.norm().as_f64();
+    prop_assert!(
+        (norm - 1.0).abs() <= UNIT_TOLERANCE,
+        "{what}: quaternion norm {norm}"
+    );
+    for (name, v) in [
+        ("position", e.position_ned_m),
+        ("velocity", e.velocity_ned_m_s),
+        ("accel bias", e.accel_bias_m_s2),
+        ("gyro bias", e.gyro_bias_rad_s),
+    ] {
+        prop_assert!(finite(v.as_slice()), "{what}: {name} {v:?}");
+    }
+    let p = e.covariance_diagonal;
+    prop_assert!(
+        p.iter().all(|v| v.is_finite() && *v >= T::zero()),
+        "{what}: covariance diagonal {p:?}"
+    );
+    for (name, v) in [("delay", e.delay_s), ("delay std", e.delay_std_s)] {
+        if let Some(v) = v {
+            prop_assert!(v.is_finite(), "{what}: {name} {v:?}");
+        }
+    }
+    let (x, p) = s.filter_state();
+    prop_assert!(finite(x.as_slice()), "{what}: filter state {x:?}");
+    let raw = x.fixed_rows::<4>(0).norm().as_f64();
+    prop_assert!(
+        (raw - 1.0).abs() <= UNIT_TOLERANCE,
+        "{what}: filter quaternion norm {raw}"
+    );
+    prop_assert!(finite(p.as_slice()), "{what}: filter covariance not finite");
+    Ok(())
+}
+
+/// Drives one estimator through one case.
+struct Driver<T: Scalar, S: Subject<T>> {
+    s: S,
+    cursor: u64,
+    /// Calls so far (for the messages).
+    calls: u64,
+    /// Whether the EKF's counters must never go down (false: the known bug
+    /// of [`nav_keeps_ekf_refusals`] is tolerated: when they drop, the
+    /// navigator rebuilt its EKF and only the new EKF's counts are taken).
+    strict: bool,
+    /// Calls after which `estimate()` was `Some`.
+    estimated_calls: u64,
+    _t: core::marker::PhantomData<T>,
+}
+
+impl<T: Scalar, S: Subject<T>> Driver<T, S> {
+    fn time(&mut self, t: Time) -> u64 {
+        let t = match t {
+            Time::After(dt) => self.cursor.saturating_add(dt),
+            Time::Same => self.cursor,
+            Time::Before(dt) => self.cursor.saturating_sub(dt),
+            Time::At(t) => t,
+        };
+        self.cursor = t;
+        t
+    }
+
+    /// One call: its refusals must be counted, the state must stay sound.
+    fn call(&mut self, what: &str, f: impl FnOnce(&mut S) -> u64) -> Result<(), TestCaseError> {
+        self.calls += 1;
+        let (own, ekf) = self.s.refusal_sums();
+        let refused = f(&mut self.s);
+        let (own_after, ekf_after) = self.s.refusal_sums();
+        let (before, after) = (own + ekf, own_after + ekf_after);
+        let counted = if self.strict || ekf_after >= ekf {
+            after.saturating_sub(before)
+        } else {
+            own_after.saturating_sub(own) + ekf_after
+        };
+        prop_assert!(
+            (self.strict && after >= before || !self.strict && own_after >= own)
+                && counted >= refused,
+            "call {} ({what}): {refused} refusal(s) but the counters went {before} -> {after}",
+            self.calls
+        );
+        self.estimated_calls += u64::from(self.s.estimate().is_some());
+        check_state(&self.s, what)
+    }
+
+    fn imu(&mut self, t_us: u64, gyro: [f64; 3], accel: [f64; 3]) -> Result<(), TestCaseError> {
+        let imu = Imu {
+            t_us,
+            gyro_rad_s: v3(gyro),
+            accel_m_s2: v3(accel),
+        };
+        self.call("imu", |s| refusals_of(&s.push_imu(&imu), |_| 0))
+    }
+
+    fn gps(&mut self, fix: Gps<T>) -> Result<(), TestCaseError> {
+        self.call("gps", |s| refusals_of(&s.push_gps(&fix), gps_gated))
+    }
+
+    fn mag(&mut self, t_us: u64, field: [f64; 3]) -> Result<(), TestCaseError> {
+        let mag = Mag {
+            t_us,
+            field_body: v3(field),
+        };
+        self.call("mag", |s| refusals_of(&s.push_mag(&mag), mag_gated))
+    }
+
+    /// Plausible flight for `ms` ms: level, a 0.5 Hz north oscillation of
+    /// 3 m/s^2, IMU at 1 kHz, GPS at 10 Hz 0.1 s late, magnetometer at 50 Hz.
+    fn calm(&mut self, ms: u32) -> Result<(), TestCaseError> {
+        let w = 2.0 * std::f64::consts::PI * 0.5;
+        let a = 3.0;
+        let start = self.cursor;
+        for k in 1..=u64::from(ms) {
+            let Some(t_us) = start.checked_add(k * IMU_PERIOD_US) else {
+                break;
+            };
+            self.cursor = t_us;
+            let t = t_us as f64 * 1e-6;
+            self.imu(t_us, [0.0; 3], [a * (w * t).sin(), 0.0, -GRAVITY])?;
+            if k % 20 == 0 {
+                self.mag(t_us, [0.2, 0.0, 0.4])?;
+            }
+            if k % 100 == 0 {
+                let tv = (t_us.saturating_sub(GPS_DELAY_US)) as f64 * 1e-6;
+                self.gps(Gps {
+                    t_us,
+                    position: GpsPosition::Ned(v3([-a / (w * w) * (w * tv).sin(), 0.0, 0.0])),
+                    velocity_ned_m_s: v3([-a / w * (w * tv).cos(), 0.0, 0.0]),
+                    horizontal_accuracy_m: None,
+                    vertical_accuracy_m: None,
+                    speed_accuracy_m_s: None,
+                })?;
+            }
+        }
+        Ok(())
+    }
+
+    fn apply(&mut self, op: Op) -> Result<(), TestCaseError> {
+        match op {
+            Op::Imu { t, gyro, accel } => {
+                let t_us = self.time(t);
+                self.imu(t_us, gyro, accel)
+            }
+            Op::Gps {
+                t,
+                position,
+                velocity,
+                accuracy: [h, v, s],
+            } => {
+                let fix = Gps {
+                    t_us: self.time(t),
+                    position: match position {
+                        Position::Ned(p) => GpsPosition::Ned(v3(p)),
+                        Position::Geodetic([lat_deg, lon_deg, alt_m]) => {
+                            GpsPosition::Geodetic(Geodetic {
+                                lat_deg,
+                                lon_deg,
+                                alt_m,
+                            })
+                        }
+                    },
+                    velocity_ned_m_s: v3(velocity),
+                    horizontal_accuracy_m: h.map(T::lit),
+                    vertical_accuracy_m: v.map(T::lit),
+                    speed_accuracy_m_s: s.map(T::lit),
+                };
+                self.gps(fix)
+            }
+            Op::Mag { t, field } => {
+                let t_us = self.time(t);
+                self.mag(t_us, field)
+            }
+            Op::Estimate => check_state(&self.s, "estimate"),
+            Op::Reset => self.call("reset", |s| {
+                s.reset();
+                0
+            }),
+            Op::Calm(ms) => self.calm(ms),
+        }
+    }
+}
+
+fn v3<T: Scalar>(v: [f64; 3]) -> Vector3<T> {
+    Vector3::new(T::lit(v[0]), T::lit(v[1]), T::lit(v[2]))
+}
+
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(DEFAULT_CASES)
+}
+
+/// Runs the machine over fresh estimators from `make`; panics with the
+/// minimal failing case.
+fn machine<T: Scalar, S: Subject<T>>(make: impl Fn() -> S, full: bool) {
+    let config = Config {
+        cases: cases(),
+        failure_persistence: None,
+        ..Config::default()
+    };
+    let mut runner = TestRunner::new(config);
+    let aligned = std::cell::Cell::new(0u32);
+    let outcome = runner.run(&case(full), |(start, ops)| {
+        let d = replay(make(), start, &ops, full)?;
+        aligned.set(aligned.get() + u32::from(d.estimated_calls > 0));
+        Ok(())
+    });
+    match outcome {
+        Ok(()) => {
+            // The state checks need estimates: most cases must reach one.
+            let cases = runner.config().cases;
+            assert!(
+                aligned.get() * 2 >= cases,
+                "only {} of {cases} cases reached an estimate",
+                aligned.get()
+            );
+            println!("{} of {cases} cases reached an estimate", aligned.get());
+        }
+        Err(TestError::Fail(_, (start, ops))) => {
+            let (start, ops) = minimize(&make, start, ops, full);
+            let why = replay(make(), start, &ops, full).err();
+            panic!("{why:?}\nminimal case: start {start:?}, ops {ops:?}");
+        }
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// Proptest's shrinking leaves long lists: drop operations one at a time
+/// (and the calm start) while the case still fails.
+fn minimize<T: Scalar, S: Subject<T>>(
+    make: &impl Fn() -> S,
+    mut start: Option<u32>,
+    mut ops: Vec<Op>,
+    strict: bool,
+) -> (Option<u32>, Vec<Op>) {
+    let fails = |start: Option<u32>, ops: &[Op]| replay(make(), start, ops, strict).is_err();
+    if start.is_some() && fails(None, &ops) {
+        start = None;
+    }
+    let mut changed = true;
+    while changed {
+        changed = false;
+        let mut i = 0;
+        while i < ops.len() {
+            let mut shorter = ops.clone();
+            shorter.remove(i);
+            if fails(start, &shorter) {
+                ops = shorter;
+                changed = true;
+            } else {
+                i += 1;
+            }
+        }
+    }
+    (start, ops)
+}
+
+/// One case: the calm start, then the operations, checked after every call.
+fn replay<T: Scalar, S: Subject<T>>(
+    s: S,
+    start: Option<u32>,
+    ops: &[Op],
+    strict: bool,
+) -> Result<Driver<T, S>, TestCaseError> {
+    let mut d = Driver {
+        s,
+        cursor: 1_000_000,
+        calls: 0,
+        strict,
+        estimated_calls: 0,
+        _t: core::marker::PhantomData,
+    };
+    if let Some(ms) = start {
+        d.calm(ms)?;
+    }
+    for &op in ops {
+        d.apply(op)?;
+    }
+    Ok(d)
+}
+
+fn nav<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNav<T> {
+    let config = NavConfig {
+        mode,
+        ..NavConfig::default()
+    };
+    DelayCompensatedNav::new(config).expect("default configuration")
+}
+
+macro_rules! machines {
+    ($($name:ident: $t:ty,)*) => {$(
+        mod $name {
+            use super::*;
+
+            pub fn nav_estimated() -> DelayCompensatedNav<$t> {
+                nav(DelayMode::Estimated { initial_s: 0.1 })
+            }
+            pub fn nav_fixed() -> DelayCompensatedNav<$t> {
+                nav(DelayMode::Fixed { delay_s: 0.1 })
+            }
+            pub fn ekf16() -> Ekf16<$t> {
+                Ekf16::new(Ekf16Config::default()).unwrap()
+            }
+            pub fn aekf17() -> AugmentedEkf17<$t> {
+                AugmentedEkf17::new(Aekf17Config::default()).unwrap()
+            }
+
+            #[test]
+            fn machine_nav_estimated() {
+                machine(nav_estimated, false);
+            }
+
+            #[test]
+            fn machine_nav_fixed() {
+                machine(nav_fixed, false);
+            }
+
+            #[test]
+            fn machine_ekf16() {
+                machine(ekf16, false);
+            }
+
+            #[test]
+            fn machine_aekf17() {
+                machine(aekf17, false);
+            }
+
+            #[test]
+            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy, nav_huge_ned_fix, nav_keeps_ekf_refusals"]
+            fn full_machine_nav_estimated() {
+                machine(nav_estimated, true);
+            }
+
+            #[test]
+            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy, nav_huge_ned_fix, nav_keeps_ekf_refusals"]
+            fn full_machine_nav_fixed() {
+                machine(nav_fixed, true);
+            }
+
+            #[test]
+            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy"]
+            fn full_machine_ekf16() {
+                machine(ekf16, true);
+            }
+
+            #[test]
+            #[ignore = "reason: known bugs long_imu_gap, tiny_speed_accuracy"]
+            fn full_machine_aekf17() {
+                machine(aekf17, true);
+            }
+        }
+    )*};
+}
+
+machines! {
+    f32_: f32,
+    f64_: f64,
+}
+
+/// Every estimator of both precisions through `ops` after a 1 s calm
+/// start, strict; the failures, one line each.
+fn all_estimators(ops: &[Op]) -> Vec<String> {
+    fn run<T: Scalar, S: Subject<T>>(name: &str, s: S, ops: &[Op], out: &mut Vec<String>) {
+        if let Err(e) = replay(s, Some(1_000), ops, true) {
+            out.push(format!("{name}: {e}"));
+        }
+    }
+    let mut out = Vec::new();
+    run("f32 nav estimated", f32_::nav_estimated(), ops, &mut out);
+    run("f32 nav fixed", f32_::nav_fixed(), ops, &mut out);
+    run("f32 ekf16", f32_::ekf16(), ops, &mut out);
+    run("f32 aekf17", f32_::aekf17(), ops, &mut out);
+    run("f64 nav estimated", f64_::nav_estimated(), ops, &mut out);
+    run("f64 nav fixed", f64_::nav_fixed(), ops, &mut out);
+    run("f64 ekf16", f64_::ekf16(), ops, &mut out);
+    run("f64 aekf17", f64_::aekf17(), ops, &mut out);
+    out
+}
+
+fn level_imu(t: Time) -> Op {
+    Op::Imu {
+        t,
+        gyro: [0.0; 3],
+        accel: [0.0, 0.0, -GRAVITY],
+    }
+}
+
+/// `u64::MAX` stamps on every stream, then the clock back to where it was and
+/// a calm second: no panic, the state stays sound, every refusal counted.
+#[test]
+fn u64_max_stamps_then_back() {
+    let ops = [
+        level_imu(Time::At(u64::MAX)),
+        level_imu(Time::Same),
+        Op::Mag {
+            t: Time::At(u64::MAX),
+            field: [0.2, 0.0, 0.4],
+        },
+        Op::Gps {
+            t: Time::At(u64::MAX),
+            position: Position::Ned([0.0; 3]),
+            velocity: [0.0; 3],
+            accuracy: [Some(1.0); 3],
+        },
+        level_imu(Time::At(2_001_000)),
+        Op::Calm(1_000),
+    ];
+    let failures = all_estimators(&ops);
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Known bug: an IMU gap of 10 h breaks the covariance of every estimator
+/// in `f32` (negative diagonal after the next GPS fusion), longer ones in
+/// `f64` too (1000 h: `AugmentedEkf17`; 2^58 µs: all); 2 h already break
+/// `AugmentedEkf17` in `f32` right after a tilted one-sample alignment (the
+/// second case, from the machine with 2000 cases), and three jumps of
+/// 10 min (30 min of IMU gap) break its delay variance in `f64` (the third). Cause:
+/// `src/ekf16/nav_core.rs`, the `StepTooLong` branch of `push_imu` adds the
+/// process noise of the whole gap to `P` with no bound (`self.p + q`), so
+/// the attitude and velocity variances leave the range a later update can
+/// handle in floating point. Found by the machine (`full_machine_*`).
+#[test]
+#[ignore = "reason: long IMU gap: P + Q(gap) unbounded in src/ekf16/nav_core.rs push_imu (StepTooLong)"]
+fn long_imu_gap() {
+    let mut failures = Vec::new();
+    for gap_us in [36_000_000_000u64, 3_600_000_000_000, 1 << 58] {
+        let ops = [level_imu(Time::After(gap_us)), Op::Calm(1_000)];
+        for f in all_estimators(&ops) {
+            failures.push(format!("gap {gap_us} us: {f}"));
+        }
+    }
+    let fix = |t, p: [f64; 3], v: [f64; 3]| Op::Gps {
+        t,
+        position: Position::Ned(p),
+        velocity: v,
+        accuracy: [None; 3],
+    };
+    let two_hours = [
+        Op::Imu {
+            t: Time::After(10_684),
+            gyro: [
+                -0.25630461346057376,
+                0.29783948142002675,
+                0.008042123272769344,
+            ],
+            accel: [0.0, 1.0819178056348757, -11.538217131104126],
+        },
+        Op::Gps {
+            t: Time::After(3_600_000_000),
+            position: Position::Ned([0.0; 3]),
+            velocity: [0.0; 3],
+            accuracy: [None, Some(0.0), None],
+        },
+        fix(Time::After(1), [0.0; 3], [0.0; 3]),
+        Op::Imu {
+            t: Time::After(3_600_000_000),
+            gyro: [0.0, 0.12137424843988098, 0.0],
+            accel: [-1.8632414909821184, 0.0, -7.806649999999999],
+        },
+        fix(
+            Time::After(3_942),
+            [65.74578378809318, -15.636051586276995, -65.66371727073953],
+            [3.7996867118844437, 2.536152651531483, 0.0],
+        ),
+        Op::Mag {
+            t: Time::After(1_984),
+            field: [0.23151560217505143, 0.022599047998249976, 0.3],
+        },
+        Op::Calm(260),
+    ];
+    if let Err(e) = replay(f32_::aekf17(), None, &two_hours, true) {
+        failures.push(format!("2 h after a tilted start, f32 aekf17: {e}"));
+    }
+    // Three jumps of 10 min on the GPS and IMU clocks (machine, 2000 cases):
+    // the delay variance goes negative, its standard deviation NaN (f64).
+    let ten_min = Time::After(600_000_000);
+    let thirty_min = [
+        Op::Imu {
+            t: Time::Same,
+            gyro: [0.0, -0.24858218282023745, -0.0476114647965351],
+            accel: [1.0454533970352136, 0.0, -8.738345524608421],
+        },
+        fix(
+            ten_min,
+            [0.0, 27.85512558779688, 28.362404917059045],
+            [4.035389100348257, 3.812376878914089, 1e30],
+        ),
+        Op::Imu {
+            t: Time::Same,
+            gyro: [0.0, -0.14103391610609092, -0.14537740198685772],
+            accel: [1.733714847391233, 0.0, -8.121918297263411],
+        },
+        Op::Gps {
+            t: ten_min,
+            position: Position::Ned([80.08476906095642, -56.24319606609323, 0.0]),
+            velocity: [0.0; 3],
+            accuracy: [Some(0.05), None, None],
+        },
+        Op::Imu {
+            t: Time::Same,
+            gyro: [-0.14366450740498726, 0.4279014745799008, 0.0],
+            accel: [-1.980365339374051, -1.2166670713569654, -7.806649999999999],
+        },
+        Op::Imu {
+            t: Time::After(13_973),
+            gyro: [0.0, -0.3255064365847603, -0.05075272043670124],
+            accel: [0.884496315769414, 0.0, -9.763182476481491],
+        },
+        Op::Mag {
+            t: Time::After(518_578),
+            field: [0.1, -0.023527598625565548, 0.3],
+        },
+        level_imu(ten_min),
+        fix(Time::After(1), [0.0; 3], [0.0; 3]),
+        Op::Mag {
+            t: Time::After(1),
+            field: [0.1, 0.0, 0.3],
+        },
+    ];
+    if let Err(e) = replay(f32_::aekf17(), None, &thirty_min, true) {
+        failures.push(format!("3 x 10 min, f32 aekf17: {e}"));
+    }
+    if let Err(e) = replay(f64_::aekf17(), None, &thirty_min, true) {
+        failures.push(format!("3 x 10 min, f64 aekf17: {e}"));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Known bug: the navigator's horizon EKF counters (`ekf_refusals`, also in
+/// `Health`) go back to zero whenever the navigator rebuilds its EKF:
+/// - `reset()` (documented to keep the refusal counters): `src/nav/mod.rs`,
+///   `reset`, `self.ekf = ekf`;
+/// - the alignment after a reset or in motion: `src/nav/mod.rs`,
+///   `refine_alignment`, `Ekf16::from_state_with_covariance` (the refusals
+///   the EKF counted before it initialized, e.g. an IMU gap, are lost).
+///
+/// Minimal cases from the machine: (a) 0.3 s calm, one fix 50 m off in
+/// down (position gated), reset; (b) 0.3 s calm, reset, 0.1 s calm, one IMU
+/// sample 250.001 ms later (a gap), 0.1 s calm (the alignment's rebuild).
+#[test]
+#[ignore = "reason: the nav rebuilds its EKF and drops its refusal counters (src/nav/mod.rs reset, refine_alignment)"]
+fn nav_keeps_ekf_refusals() {
+    let gated_then_reset = [
+        Op::Gps {
+            t: Time::After(1),
+            position: Position::Ned([0.0, 0.0, -50.0]),
+            velocity: [0.0; 3],
+            accuracy: [None; 3],
+        },
+        Op::Reset,
+    ];
+    let gap_then_alignment = [
+        Op::Reset,
+        Op::Calm(101),
+        level_imu(Time::After(250_001)),
+        Op::Calm(100),
+    ];
+    let mut failures = Vec::new();
+    for ops in [&gated_then_reset[..], &gap_then_alignment[..]] {
+        for mode in [
+            DelayMode::Fixed { delay_s: 0.1 },
+            DelayMode::Estimated { initial_s: 0.1 },
+        ] {
+            if let Err(e) = replay(nav::<f64>(mode), Some(300), ops, true) {
+                failures.push(format!("{mode:?}: {e}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// In estimated mode an accepted IMU sample within half a delay grid period
+/// of `u64::MAX` overflowed `t_us + p / 2` in `src/delay/grid.rs`
+/// (`ImuToGrid::push`, issue 10): a panic in a debug build. Reached through
+/// the navigator's gap confirmation: a sample stamped near `u64::MAX` is
+/// refused as ahead, the next one within the bound after it confirms the gap
+/// and is accepted. Found by `full_machine_nav_estimated` (237 panics in 64
+/// cases before the grid's checked arithmetic).
+#[test]
+fn nav_estimated_imu_near_u64_max() {
+    let ops = [
+        level_imu(Time::At(u64::MAX - 1_000)),
+        level_imu(Time::At(u64::MAX)),
+    ];
+    let mut failures = Vec::new();
+    for (name, result) in [
+        (
+            "f32",
+            std::panic::catch_unwind(|| {
+                replay(f32_::nav_estimated(), Some(1_000), &ops, true).err()
+            }),
+        ),
+        (
+            "f64",
+            std::panic::catch_unwind(|| {
+                replay(f64_::nav_estimated(), Some(1_000), &ops, true).err()
+            }),
+        ),
+    ] {
+        match result {
+            Ok(None) => {}
+            Ok(Some(e)) => failures.push(format!("{name}: {e}")),
+            Err(_) => failures.push(format!("{name}: panicked")),
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Known bug: a reported speed accuracy of 1e-20 m/s passes
+/// `sensors::checked_gps` (finite, positive, below the bound: there is no
+/// lower bound), its square 1e-40 becomes `R`, and after a 10 min IMU gap
+/// the fused velocity variances come out at 1e-40 and below zero
+/// (-1e-29 to -1e-15). Cause: `src/sensors.rs`, `checked_gps` (no floor on
+/// the accuracies), squared in `src/ekf16/nav_core.rs` `begin_gps`.
+/// Minimal case from the machine (2000 cases): 1.154 s calm, one IMU sample
+/// 10 min later, a fix with speed accuracy 1e-20, a magnetometer sample.
+#[test]
+#[ignore = "reason: no lower bound on reported accuracies (src/sensors.rs checked_gps): R = 1e-40 gives negative variances"]
+fn tiny_speed_accuracy() {
+    let ops = [
+        Op::Imu {
+            t: Time::After(600_000_000),
+            gyro: [
+                -0.4945430218342987,
+                -0.09756791518491216,
+                -0.05970421180578297,
+            ],
+            accel: [1.1874756396413841, 0.0, -7.806649999999999],
+        },
+        Op::Gps {
+            t: Time::After(1),
+            position: Position::Ned([0.0; 3]),
+            velocity: [0.0; 3],
+            accuracy: [None, None, Some(1e-20)],
+        },
+        Op::Mag {
+            t: Time::After(1),
+            field: [0.1, 0.0, 0.3],
+        },
+    ];
+    let mut failures = Vec::new();
+    if let Err(e) = replay(f64_::ekf16(), Some(1_154), &ops, true) {
+        failures.push(format!("f64 ekf16: {e}"));
+    }
+    if let Err(e) = replay(f32_::ekf16(), Some(1_154), &ops, true) {
+        failures.push(format!("f32 ekf16: {e}"));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Known bug: a NED fix at `f32::MAX` (in `f32`) or `f64::MAX` (in `f64`)
+/// passes `sensors::checked_gps` (finite; NED positions have no magnitude
+/// bound, unlike the velocity), initializes the horizon EKF there, and the
+/// navigator's present position becomes infinite on the next IMU samples
+/// (the output predictor overflows). Cause: `src/sensors.rs`,
+/// `checked_gps` (no bound on NED positions). Minimal cases from the
+/// machine: 0.114 s / 0.102 s of calm flight, the fix 6 ms / 18 ms later,
+/// 0.1 s of calm flight.
+#[test]
+#[ignore = "reason: NED positions unbounded in src/sensors.rs checked_gps: the nav's present position overflows to inf"]
+fn nav_huge_ned_fix() {
+    let huge_fix = |t, p| Op::Gps {
+        t,
+        position: Position::Ned(p),
+        velocity: [0.0; 3],
+        accuracy: [None; 3],
+    };
+    let f32_ops = [
+        Op::Calm(114),
+        huge_fix(Time::After(6_000), [0.0, 0.0, f32::MAX as f64]),
+        Op::Calm(96),
+    ];
+    let f64_ops = [
+        Op::Calm(102),
+        huge_fix(Time::After(18_000), [f64::MAX, 0.0, 0.0]),
+        Op::Calm(89),
+    ];
+    let mut failures = Vec::new();
+    if let Err(e) = replay(f32_::nav_fixed(), None, &f32_ops, true) {
+        failures.push(format!("f32 nav fixed: {e}"));
+    }
+    if let Err(e) = replay(f64_::nav_fixed(), None, &f64_ops, true) {
+        failures.push(format!("f64 nav fixed: {e}"));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
