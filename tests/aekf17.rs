@@ -8,8 +8,8 @@ use delaynav::aekf17::measurement::{
 use delaynav::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
 use delaynav::geo::{quaternion_from_euler, rotation_matrix};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Error, GpsOutcome, GpsPosition, Imu, Mag, NavState,
-    Navigator, Scalar,
+    Aekf17Config, AugmentedEkf17, Ekf16, Error, Geodetic, GpsOutcome, GpsPosition, Imu, Mag,
+    NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, Vector3};
 
@@ -338,6 +338,30 @@ macro_rules! aekf17_tests {
                     ));
                 }
                 assert_eq!((*aekf.state_vector(), *aekf.covariance()), (x, p));
+            }
+
+            #[test]
+            fn geodetic_and_ned_fixes_do_not_mix() {
+                let mut aekf = accelerating(0.1);
+                let t = aekf.time_us().unwrap();
+                let e = aekf.estimate().unwrap();
+                let ned = GpsPosition::Ned(e.position_ned_m);
+                aekf.push_gps(&gps_fix(t, ned, e.velocity_ned_m_s)).unwrap();
+                let (x, p) = (*aekf.state_vector(), *aekf.covariance());
+                let geo = GpsPosition::Geodetic(Geodetic {
+                    lat_deg: 31.0,
+                    lon_deg: 121.0,
+                    alt_m: 10.0,
+                });
+                assert!(matches!(
+                    aekf.push_gps(&gps_fix(t + 1, geo, Vector3::zeros())),
+                    Err(Error::OutOfRange {
+                        field: "gps.position",
+                        ..
+                    })
+                ));
+                assert_eq!((*aekf.state_vector(), *aekf.covariance()), (x, p));
+                assert_eq!(aekf.refusals().gps_mixed_frames, 1);
             }
 
             #[test]

@@ -4,19 +4,26 @@
 //! arbitrary-input property also runs the augmented filter on the same core.
 
 use delaynav::ekf16::state::{self, ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
+use delaynav::ekf16::{GpsBlock, GpsResetCause};
 use delaynav::ekf16::{measurement, process};
 use delaynav::geo::{
     euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix,
     tilt_compensated_heading, wrap_pi,
 };
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Gps, GpsOutcome, GpsPosition, Imu,
-    Mag, MagOutcome, NavState, Navigator, Scalar,
+    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, FusionRecord, Geodetic, Gps,
+    GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
 
 mod flight;
 use flight::*;
+
+/// Resets of both GPS blocks so far.
+fn gps_resets<T: Scalar>(ekf: &Ekf16<T>) -> u32 {
+    let r = ekf.refusals();
+    r.gps_position_resets + r.gps_velocity_resets
+}
 
 macro_rules! ekf16_tests {
     ($mod:ident, $t:ty, jac_step = $step:expr, jac_tol = $jtol:expr, round = $round:expr) => {
@@ -757,11 +764,151 @@ macro_rules! ekf16_tests {
                             GpsPosition::Ned(e.position_ned_m + jump),
                             e.velocity_ned_m_s + jump,
                         );
-                        let resets = ekf.refusals().gps_resets;
+                        let resets = gps_resets(ekf);
                         ekf.push_gps(&fix).unwrap();
-                        (k * 200_000, ekf.refusals().gps_resets > resets)
+                        (k * 200_000, gps_resets(ekf) > resets)
                     })
                     .collect()
+            }
+
+            /// Fixes every 0.2 s for 7 s (no IMU step between them) whose
+            /// position is `offset` away from the estimate (the first one's,
+            /// or with `runaway` each one's) and whose velocity is the
+            /// estimate's: the index (1-based) of the fixes that reset
+            /// position, and of those that reset velocity.
+            fn position_step(
+                ekf: &mut Ekf16<T>,
+                offset: Vector3<T>,
+                runaway: bool,
+            ) -> (Vec<u64>, Vec<u64>) {
+                let t = ekf.time_us().unwrap();
+                let first = ekf.estimate().unwrap();
+                let (mut pos, mut vel) = (Vec::new(), Vec::new());
+                for k in 1..=35u64 {
+                    let e = if runaway {
+                        ekf.estimate().unwrap()
+                    } else {
+                        first
+                    };
+                    let fix = gps_fix(
+                        t + k * 200_000,
+                        GpsPosition::Ned(e.position_ned_m + offset),
+                        e.velocity_ned_m_s,
+                    );
+                    let before = ekf.refusals();
+                    ekf.push_gps(&fix).unwrap();
+                    let after = ekf.refusals();
+                    if after.gps_position_resets > before.gps_position_resets {
+                        pos.push(k);
+                    }
+                    if after.gps_velocity_resets > before.gps_velocity_resets {
+                        vel.push(k);
+                    }
+                }
+                (pos, vel)
+            }
+
+            #[test]
+            fn a_position_step_with_good_velocity_resets_position_only() {
+                let mut ekf = running_filter();
+                let step = Vector3::new(lit(50.0), lit(0.0), lit(0.0));
+                let (pos, vel) = position_step(&mut ekf, step, false);
+                // Rejected from the first fix; reset once its own timer
+                // (5 s after the last accepted fix, at most 0.1 s before the
+                // first of these) ran out; velocity never rejected, never reset.
+                assert!(
+                    pos == [25] || pos == [26],
+                    "position resets at fixes {pos:?}"
+                );
+                assert!(vel.is_empty(), "velocity resets at fixes {vel:?}");
+                let r = ekf.refusals();
+                assert_eq!((r.gps_position_resets, r.gps_velocity_resets), (1, 0));
+                assert_eq!(r.gps_divergence_resets, 0);
+                let reset = ekf.last_gps_reset().unwrap();
+                assert_eq!(reset.block, GpsBlock::Position);
+                assert_eq!(reset.cause, GpsResetCause::Rejected);
+                // The fixes after the reset are fused.
+                let (position, velocity) = ekf.last_gps_fusion().unwrap();
+                assert!(position.fused && velocity.fused);
+                let p = ekf.covariance();
+                assert!(p == &p.transpose());
+                assert!(min_relative_eigenvalue(p) > -1e3 * $round);
+            }
+
+            #[test]
+            fn a_consistent_bias_below_the_gate_is_a_divergence() {
+                // Every position 3.5 sigma north of the estimate: each fix
+                // passes the 5-sigma gate, but the mean NIS of 20 of them is
+                // far above the bound of 6.6.
+                let mut ekf = running_filter();
+                let sigma = ekf.config().gps_horizontal_std_m;
+                let offset = Vector3::new(sigma * lit(3.5), lit(0.0), lit(0.0));
+                let (pos, vel) = position_step(&mut ekf, offset, true);
+                assert!(!pos.is_empty() && vel.is_empty(), "{pos:?} {vel:?}");
+                let r = ekf.refusals();
+                assert!(r.gps_divergence_resets >= 1);
+                assert_eq!(r.gps_divergence_resets, r.gps_position_resets);
+                assert_eq!(ekf.last_gps_reset().unwrap().cause, GpsResetCause::Diverged);
+                let p = ekf.covariance();
+                assert!(min_relative_eigenvalue(p) > -1e3 * $round);
+                // Without the window, no reset.
+                let mut off = running_filter_with(Ekf16Config {
+                    gps_nis_window: 0,
+                    ..config()
+                });
+                assert_eq!(position_step(&mut off, offset, true).0, Vec::<u64>::new());
+            }
+
+            #[test]
+            fn a_first_fix_glitch_recovers() {
+                // The first fix 1000 km north initializes the filter there;
+                // the next ones are right: position rejected, reset after
+                // its timeout, velocity fused throughout.
+                let mut ekf = Ekf16::<T>::new(config()).unwrap();
+                let g = Vector3::new(lit(0.0), lit(0.0), lit(-G));
+                for k in 0..=800u64 {
+                    let t = k * 10_000;
+                    ekf.push_imu(&Imu {
+                        t_us: t,
+                        gyro_rad_s: Vector3::zeros(),
+                        accel_m_s2: g,
+                    })
+                    .unwrap();
+                    if k % 20 == 10 {
+                        let north = if k == 10 { lit(1e6) } else { lit(0.0) };
+                        let fix = gps_fix(
+                            t,
+                            GpsPosition::Ned(Vector3::new(north, lit(0.0), lit(0.0))),
+                            Vector3::zeros(),
+                        );
+                        ekf.push_gps(&fix).unwrap();
+                    }
+                }
+                let e = ekf.estimate().unwrap();
+                assert!(e.position_ned_m.norm() < lit(5.0), "{:?}", e.position_ned_m);
+                let r = ekf.refusals();
+                assert_eq!((r.gps_position_resets, r.gps_velocity_resets), (1, 0));
+            }
+
+            #[test]
+            fn geodetic_and_ned_fixes_do_not_mix() {
+                let mut ekf = running_filter();
+                let t = ekf.time_us().unwrap();
+                let before = snapshot(&ekf);
+                let geo = GpsPosition::Geodetic(Geodetic {
+                    lat_deg: 31.0,
+                    lon_deg: 121.0,
+                    alt_m: 10.0,
+                });
+                assert!(matches!(
+                    ekf.push_gps(&gps_fix(t + 1, geo, Vector3::zeros())),
+                    Err(Error::OutOfRange {
+                        field: "gps.position",
+                        ..
+                    })
+                ));
+                assert_eq!(snapshot(&ekf), before);
+                assert_eq!(ekf.refusals().gps_mixed_frames, 1);
             }
 
             #[test]
@@ -789,7 +936,8 @@ macro_rules! ekf16_tests {
                 let fused_after = (30 - resets[0] / 200_000) as f64;
                 let expected = r.as_f64() / (fused_after + 1.0);
                 assert!((p[(POS, POS)].as_f64() / expected - 1.0).abs() < 1e-4);
-                assert_eq!(ekf.refusals().gps_resets, 1);
+                assert_eq!(ekf.refusals().gps_position_resets, 1);
+                assert_eq!(ekf.refusals().gps_velocity_resets, 1);
                 // The fixes after the reset agree with the state: fused.
                 let (position, velocity) = ekf.last_gps_fusion().unwrap();
                 assert!(position.fused && velocity.fused);
@@ -800,7 +948,7 @@ macro_rules! ekf16_tests {
                 });
                 let before = never.estimate().unwrap();
                 assert!(fixes_away(&mut never).iter().all(|r| !r.1));
-                assert_eq!(never.refusals().gps_resets, 0);
+                assert_eq!(gps_resets(&never), 0);
                 assert_eq!(
                     never.estimate().unwrap().position_ned_m,
                     before.position_ned_m
@@ -903,16 +1051,42 @@ macro_rules! ekf16_tests {
                 assert!((position.innovation.z + lit(1.0)).abs() < lit(1e-3));
             }
 
-            #[test]
-            fn magnetometer_update_corrects_yaw_and_not_roll_or_pitch() {
-                let (roll, pitch, yaw) = (0.17, -0.26, 0.7);
-                let start = NavState {
+            /// Pushes, at t = 1 ms, the noise-free field of a vehicle at
+            /// this attitude (rad): the record of the magnetometer update.
+            fn mag_seen_at(
+                ekf: &mut Ekf16<T>,
+                roll: f64,
+                pitch: f64,
+                yaw: f64,
+            ) -> FusionRecord<T, 3> {
+                let seen = quaternion_from_euler(roll, pitch, yaw);
+                let m_b = rotation_matrix(seen.quaternion()).transpose()
+                    * magnetic_field_ned(INCLINATION, DECLINATION);
+                let field_body = v3(&m_b);
+                match ekf.push_mag(&Mag {
+                    t_us: 1_000,
+                    field_body,
+                }) {
+                    Ok(MagOutcome::Fused(rec)) => rec,
+                    other => panic!("expected a fusion, got {other:?}"),
+                }
+            }
+
+            /// At rest at the origin with this attitude (rad), biases 0.
+            fn at_rest(roll: f64, pitch: f64, yaw: f64) -> NavState<T> {
+                NavState {
                     attitude: quaternion_from_euler(lit(roll), lit(pitch), lit(yaw)),
                     position_ned_m: Vector3::zeros(),
                     velocity_ned_m_s: Vector3::zeros(),
                     accel_bias_m_s2: Vector3::zeros(),
                     gyro_bias_rad_s: Vector3::zeros(),
-                };
+                }
+            }
+
+            #[test]
+            fn magnetometer_update_corrects_yaw_and_not_roll_or_pitch() {
+                let (roll, pitch, yaw) = (0.17, -0.26, 0.7);
+                let start = at_rest(roll, pitch, yaw);
                 let mut p = SMatrix::<T, NAV_STATES, NAV_STATES>::identity() * lit(0.01);
                 p.fixed_view_mut::<4, 4>(QUAT, QUAT)
                     .copy_from(&state::attitude_covariance(
@@ -924,23 +1098,13 @@ macro_rules! ekf16_tests {
                 // The yaw-only ("consider") mode: roll and pitch stay put.
                 let yaw_only = Ekf16Config {
                     mag_corrects_tilt: false,
+                    mag_tilt_alignment_std_rad: lit(f64::INFINITY),
                     ..config()
                 };
                 let mut ekf =
                     Ekf16::from_state_with_covariance(yaw_only, 1_000, &start, &p).unwrap();
                 // The magnetometer sees the vehicle 20 deg further right.
-                let seen = quaternion_from_euler(roll, pitch, yaw + 0.35);
-                let m_b = rotation_matrix(seen.quaternion()).transpose()
-                    * magnetic_field_ned(INCLINATION, DECLINATION);
-                let MagOutcome::Fused(rec) = ekf
-                    .push_mag(&Mag {
-                        t_us: 1_000,
-                        field_body: v3(&m_b),
-                    })
-                    .unwrap()
-                else {
-                    panic!("expected a fusion")
-                };
+                let rec = mag_seen_at(&mut ekf, roll, pitch, yaw + 0.35);
                 assert!(rec.fused, "test ratio {}", rec.test_ratio.as_f64());
                 let e = to_f64(&ekf.estimate().unwrap().euler_rad());
                 let moved = wrap_pi(e.z - yaw);
@@ -958,6 +1122,93 @@ macro_rules! ekf16_tests {
                 // Nothing but the attitude moved (no correlations in this P).
                 let x = ekf.state_vector();
                 assert!(x.rows(POS, NAV_STATES - POS).amax() < lit(100.0 * $round));
+            }
+
+            #[test]
+            fn a_heading_update_cannot_move_tilt_or_the_accel_bias() {
+                // A dense covariance: tilt, yaw, velocity and both biases
+                // all correlated (P = A Aᵀ, A with every entry non-zero).
+                let (roll, pitch, yaw) = (0.3, -0.2, 1.1);
+                let start = at_rest(roll, pitch, yaw);
+                let a = SMatrix::<T, NAV_STATES, NAV_STATES>::from_fn(|i, j| {
+                    let d = if i == j { 0.2 } else { 0.0 };
+                    lit(d + 0.05 * ((3 * i + 7 * j) as f64).sin())
+                });
+                let p = a * a.transpose();
+                let down_before =
+                    rotation_matrix(start.attitude.quaternion()).transpose() * Vector3::z();
+                // The magnetometer sees the vehicle 60 deg further right.
+                // Heading only from the start (no alignment exception), gate open.
+                let run = |alignment_std: f64| {
+                    let c = Ekf16Config {
+                        mag_gate: lit(f64::INFINITY),
+                        mag_tilt_alignment_std_rad: lit(alignment_std),
+                        ..config()
+                    };
+                    assert!(!c.mag_corrects_tilt, "heading-only is the default");
+                    let mut ekf = Ekf16::from_state_with_covariance(c, 1_000, &start, &p).unwrap();
+                    assert!(mag_seen_at(&mut ekf, roll, pitch, yaw + 60f64.to_radians()).fused);
+                    let e = ekf.estimate().unwrap();
+                    let down_after =
+                        rotation_matrix(e.attitude.quaternion()).transpose() * Vector3::z();
+                    let tilt = to_f64(&down_before).cross(&to_f64(&down_after)).norm();
+                    (ekf, e, tilt)
+                };
+                let (ekf, e, tilt) = run(f64::INFINITY);
+                let moved = wrap_pi(to_f64(&e.euler_rad()).z - yaw);
+                assert!(moved.abs() > 0.01, "yaw moved by {moved}");
+                // Tilt: the angle between the body-frame down axis before and after.
+                assert!(tilt < 1e-6, "tilt moved by {tilt} rad");
+                assert!(e.accel_bias_m_s2.amax() == lit(0.0));
+                // The gyro bias moved along the body-frame down axis only.
+                let bw = to_f64(&e.gyro_bias_rad_s);
+                assert!(bw.norm() > 0.0);
+                assert!(bw.cross(&to_f64(&down_before)).norm() < 1e-5 * bw.norm().max(1e-3));
+                let p = ekf.covariance();
+                assert!(p == &p.transpose());
+                assert!(min_relative_eigenvalue(p) > -1e3 * $round);
+                // With the default alignment bound (2 deg) this tilt, uncertain
+                // by far more, is still corrected by the magnetometer.
+                assert!(ekf.tilt_std() > lit(0.035));
+                let (_, _, tilt) = run(0.035);
+                assert!(tilt > 1e-3, "tilt moved by {tilt} rad");
+            }
+
+            #[test]
+            fn a_disturbed_field_is_refused_and_counted() {
+                let mut ekf = running_filter();
+                let t = ekf.time_us().unwrap();
+                let e = ekf.estimate().unwrap();
+                let before = snapshot(&ekf);
+                let m_n = magnetic_field_ned(INCLINATION, DECLINATION);
+                let body = |m: Vector3<f64>| -> Vector3<T> {
+                    rotation_matrix(e.attitude.quaternion()).transpose() * v3::<T>(&m)
+                };
+                // Twice the norm; then the right norm, 46 deg less inclined.
+                let tilted = Vector3::new(m_n.x, m_n.y, 0.0).normalize()
+                    * (INCLINATION - 0.8).cos()
+                    + Vector3::z() * (INCLINATION - 0.8).sin();
+                for (k, m) in [m_n * 2.0, tilted].into_iter().enumerate() {
+                    let outcome = ekf.push_mag(&Mag {
+                        t_us: t + 1 + k as u64,
+                        field_body: body(m),
+                    });
+                    let Ok(MagOutcome::Fused(rec)) = outcome else {
+                        panic!("{outcome:?}")
+                    };
+                    assert!(!rec.fused && rec.test_ratio.is_infinite(), "{k}: {rec:?}");
+                }
+                assert_eq!(ekf.refusals().mag_disturbed, 2);
+                assert_eq!(snapshot(&ekf).0, before.0);
+                assert_eq!(snapshot(&ekf).1, before.1);
+                // The undisturbed field still goes through.
+                assert!(matches!(
+                    ekf.push_mag(&Mag {
+                        t_us: t + 3,
+                        field_body: body(m_n),
+                    }),
+                    Ok(MagOutcome::Fused(_))
+                ));
             }
         }
     };

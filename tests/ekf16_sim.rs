@@ -322,3 +322,89 @@ fn f32_covariances_stay_symmetric_psd_over_100k_simulated_steps() {
     assert_eq!(ekf.refusals().not_positive_definite, 0);
     assert_eq!(aekf.refusals().not_positive_definite, 0);
 }
+
+/// The navigator on the fault suite's `high` run (20 s) with `faults`, its
+/// EKF configured from the run's sensors: its health at the end.
+fn navigator_health(faults: &[delaynav::sim::Fault]) -> delaynav::nav::Health<f64> {
+    use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+    use delaynav::sim::FaultySimulation;
+    use delaynav::sim::faults::base_config;
+    let sim = SimConfig {
+        duration_s: 20.0,
+        ..base_config(1, 1.0)
+    };
+    let s = &sim.sensors;
+    let mut nav = DelayCompensatedNav::<f64>::new(NavConfig {
+        ekf: Ekf16Config {
+            mag_inclination_rad: s.inclination_rad,
+            mag_declination_rad: s.declination_rad,
+            ..Ekf16Config::with_per_sample_imu_variances(
+                s.gyro_noise_var_rad2_s2,
+                s.accel_noise_var_g2 * STANDARD_GRAVITY.powi(2),
+                s.imu_rate_hz,
+            )
+        },
+        mode: DelayMode::Estimated { initial_s: 0.2 },
+        imu_rate_hz: s.imu_rate_hz,
+        ..NavConfig::default()
+    })
+    .unwrap();
+    for event in FaultySimulation::new(sim.clone(), faults).unwrap() {
+        match &event {
+            SimEvent::Imu { sample, .. } => {
+                let _ = nav.push_imu(sample);
+            }
+            SimEvent::Mag(m) => {
+                let _ = nav.push_mag(m);
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = nav.push_gps(fix);
+            }
+        }
+    }
+    nav.health()
+}
+
+#[test]
+fn a_position_step_resets_position_alone_and_health_says_why() {
+    use delaynav::ekf16::{GpsBlock, GpsResetCause};
+    use delaynav::nav::ResetCause;
+    let clean = navigator_health(&[]);
+    assert_eq!(clean.ekf_refusals.gps_position_resets, 0);
+    assert_eq!(clean.ekf_refusals.gps_velocity_resets, 0);
+    assert_eq!(clean.last_reset, None);
+    let h = navigator_health(&[delaynav::sim::Fault::GpsPositionStep {
+        from_s: 8.0,
+        offset_m: [50.0, 0.0, 0.0],
+    }]);
+    let r = h.ekf_refusals;
+    assert_eq!((r.gps_position_resets, r.gps_velocity_resets), (1, 0));
+    let Some(reset) = h.last_reset else {
+        panic!("no reset reported")
+    };
+    let ResetCause::Gps(gps) = reset.cause else {
+        panic!("{reset:?}")
+    };
+    assert_eq!(
+        (gps.block, gps.cause),
+        (GpsBlock::Position, GpsResetCause::Rejected)
+    );
+    // 5 s of rejected position blocks after the step (10 Hz GPS).
+    assert!(r.gps_position_rejected >= 45, "{r:?}");
+    assert!(h.position_valid && h.velocity_valid);
+}
+
+#[test]
+fn a_magnetic_disturbance_is_refused_and_counted() {
+    let clean = navigator_health(&[]);
+    let h = navigator_health(&[delaynav::sim::Fault::MagRotation {
+        from_s: 8.0,
+        to_s: 13.0,
+        angle_rad: 60f64.to_radians(),
+    }]);
+    // 5 s of a 100 Hz magnetometer: nearly all of the 500 turned samples
+    // are refused by the heading gate (the clean run refuses ~0.3 %).
+    let refused = h.ekf_refusals.mag_rejected - clean.ekf_refusals.mag_rejected;
+    assert!(refused >= 450, "{refused} refused");
+    assert!(h.heading_valid);
+}

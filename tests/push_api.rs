@@ -272,8 +272,12 @@ fn ekf_sum(c: &RefusalCounters) -> u64 {
             mag_invalid,
             mag_time,
             mag_rejected,
+            mag_disturbed,
+            gps_mixed_frames,
             not_positive_definite,
-            gps_resets,
+            gps_position_resets,
+            gps_velocity_resets,
+            gps_divergence_resets,
         }
     )
 }

@@ -37,6 +37,18 @@ pub const TABLE3_MAG_VARIANCE: f64 = 0.02;
 pub const TABLE3_GPS_POSITION_VARIANCE: f64 = 4.0;
 /// Paper Table 3: GPS velocity variance, (m/s)^2.
 pub const TABLE3_GPS_VELOCITY_VARIANCE: f64 = 0.1;
+/// Default gate of the magnetometer's heading innovation: the chi-square
+/// quantile of 1 degree of freedom at 3 sigma (`P(NIS > 9) = 0.27 %`). The
+/// 3-D pseudo-measurement's innovation and `H` span one direction, so its NIS
+/// is that of the scalar heading (see `docs/math.md`).
+pub const MAG_HEADING_GATE_3_SIGMA: f64 = 9.0;
+/// Default bound on the mean NIS of a GPS block over
+/// [`DEFAULT_GPS_NIS_WINDOW`] accepted fusions: the chi-square quantile of
+/// `3 x 20 = 60` degrees of freedom at a one-sided 5-sigma tail (2.9e-7),
+/// divided by 20 (Wilson-Hilferty: 132 / 20).
+pub const DEFAULT_GPS_NIS_BOUND: f64 = 6.6;
+/// Default divergence window of a GPS block, accepted fusions.
+pub const DEFAULT_GPS_NIS_WINDOW: u32 = 20;
 /// The paper's IMU rate, Hz.
 pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
 
@@ -82,25 +94,60 @@ pub struct Ekf16Config<T: Scalar> {
     /// about `tan(I)` times the tilt error; the measurement Jacobian carries
     /// that term in both modes (see
     /// [`mag_model_tilt_coupled`](super::measurement::mag_model_tilt_coupled)).
-    /// `true` (default): the plain Kalman update, which also corrects roll
-    /// and pitch through that term. `false`: a "consider" update restricted
-    /// to yaw (the paper's stated intent, see
-    /// [`joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
-    /// roll and pitch are not moved by the magnetometer, yet their
-    /// uncertainty is accounted for.
+    /// `false` (default): a "consider" update restricted to heading (the
+    /// paper's stated intent for eq. 7, see
+    /// [`heading_only_restriction`](super::measurement::heading_only_restriction)
+    /// and [`joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+    /// the correction's rotation is about the NED vertical only, the
+    /// accelerometer biases and the roll/pitch-rate gyro biases are not
+    /// moved; the tilt's uncertainty is still accounted for. `true`: the
+    /// plain Kalman update, which also corrects roll and pitch through that
+    /// term (and lets a magnetic disturbance tilt the filter).
     pub mag_corrects_tilt: bool,
+    /// With `mag_corrects_tilt = false`: while the tilt is less certain
+    /// than this (the larger of the north and east standard deviations of
+    /// the attitude error, rad, from `P`), the magnetometer still corrects
+    /// roll and pitch (the plain update): an alignment in flight, where the
+    /// accelerometer gave a poor tilt and the heading's `tan(I)` share of
+    /// the tilt error is real information. Below it the update is heading
+    /// only. Default 0.035 rad (2 deg); +inf: heading only from the start.
+    pub mag_tilt_alignment_std_rad: T,
+    /// Largest relative difference between a magnetometer sample's field
+    /// norm and the learned norm, `|m| / m0 - 1`; beyond, the sample is
+    /// refused as disturbed (counted in `mag_disturbed`). Default 0.5: wide
+    /// enough for Table 3 noise (0.14 of the field per axis).
+    pub mag_norm_tolerance: T,
+    /// Largest difference, rad, between a sample's inclination (seen with
+    /// the estimated attitude) and the learned inclination; beyond, refused
+    /// as disturbed. Default 0.5 rad (29 deg; Table 3 noise gives about
+    /// 8 deg per sample).
+    pub mag_inclination_tolerance_rad: T,
+    /// Weight of one accepted sample in the learned field norm and
+    /// inclination (an exponential mean; learned first from the samples
+    /// averaged at initialization). Default 1e-3 (10 s at 100 Hz).
+    pub mag_field_learning_rate: T,
 
     /// Chi-square gate on the NIS of the GPS position block (3 DOF).
     pub gps_position_gate: T,
     /// Chi-square gate on the NIS of the GPS velocity block (3 DOF).
     pub gps_velocity_gate: T,
-    /// Chi-square gate on the NIS of the magnetometer block (3 DOF).
+    /// Chi-square gate on the NIS of the magnetometer block, which is the
+    /// NIS of the heading innovation (1 DOF; default
+    /// [`MAG_HEADING_GATE_3_SIGMA`]).
     pub mag_gate: T,
-    /// Longest time, microseconds, with every GPS fix rejected (both
-    /// blocks) before position and velocity are reset to a fix; 0: never.
-    /// Without it a filter that has drifted past both gates never accepts a
-    /// fix again and its velocity diverges.
+    /// Longest time, microseconds, with a GPS block (position or velocity)
+    /// rejected in every fix before that block is reset to a fix; each
+    /// block has its own timer; 0: never. Without it a filter that has
+    /// drifted past a gate never accepts that block again (a bad first fix,
+    /// a position step with good velocity).
     pub gps_reset_timeout_us: u64,
+    /// Divergence window of a GPS block, accepted fusions (0: no divergence
+    /// detection). The NIS of the block's accepted fusions is averaged over
+    /// consecutive windows of this many.
+    pub gps_nis_window: u32,
+    /// Bound on a block's mean NIS over a window; above it the block is
+    /// reset to the fix (counted in `gps_divergence_resets`).
+    pub gps_nis_bound: T,
 
     /// Longest IMU step integrated, microseconds; longer gaps are refused
     /// with [`Error::StepTooLong`] (covariance grows, state not propagated).
@@ -150,11 +197,17 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             mag_inclination_rad: T::zero(),
             mag_declination_rad: T::zero(),
             mag_noise_variance: T::lit(TABLE3_MAG_VARIANCE),
-            mag_corrects_tilt: true,
+            mag_corrects_tilt: false,
+            mag_tilt_alignment_std_rad: T::lit(0.035),
+            mag_norm_tolerance: T::lit(0.5),
+            mag_inclination_tolerance_rad: T::lit(0.5),
+            mag_field_learning_rate: T::lit(1e-3),
             gps_position_gate: T::lit(GATE_5_SIGMA_3DOF),
             gps_velocity_gate: T::lit(GATE_5_SIGMA_3DOF),
-            mag_gate: T::lit(GATE_5_SIGMA_3DOF),
+            mag_gate: T::lit(MAG_HEADING_GATE_3_SIGMA),
             gps_reset_timeout_us: 5_000_000,
+            gps_nis_window: DEFAULT_GPS_NIS_WINDOW,
+            gps_nis_bound: T::lit(DEFAULT_GPS_NIS_BOUND),
             max_imu_step_us: 250_000,
             max_gyro_rad_s: T::lit(35.0),
             max_accel_m_s2: T::lit(400.0),
@@ -190,7 +243,7 @@ impl<T: Scalar> Ekf16Config<T> {
 
     /// Checks every field; the first offending one is named in the error.
     pub fn validate(&self) -> Result<(), Error> {
-        let positive: [(T, &'static str); 19] = [
+        let positive: [(T, &'static str); 24] = [
             (self.gravity_m_s2, "gravity_m_s2"),
             (self.gyro_noise_density, "gyro_noise_density"),
             (self.accel_noise_density, "accel_noise_density"),
@@ -201,6 +254,17 @@ impl<T: Scalar> Ekf16Config<T> {
             (self.gps_position_gate, "gps_position_gate"),
             (self.gps_velocity_gate, "gps_velocity_gate"),
             (self.mag_gate, "mag_gate"),
+            (
+                self.mag_tilt_alignment_std_rad,
+                "mag_tilt_alignment_std_rad",
+            ),
+            (self.mag_norm_tolerance, "mag_norm_tolerance"),
+            (
+                self.mag_inclination_tolerance_rad,
+                "mag_inclination_tolerance_rad",
+            ),
+            (self.mag_field_learning_rate, "mag_field_learning_rate"),
+            (self.gps_nis_bound, "gps_nis_bound"),
             (self.max_gyro_rad_s, "max_gyro_rad_s"),
             (self.max_accel_m_s2, "max_accel_m_s2"),
             (self.initial_tilt_std_rad, "initial_tilt_std_rad"),
@@ -221,14 +285,18 @@ impl<T: Scalar> Ekf16Config<T> {
             ),
         ];
         for (v, field) in positive {
-            // `!(v > 0)` also catches NaN. Gates may be +inf (no gating).
+            // `!(v > 0)` also catches NaN. Gates, tolerances and the NIS
+            // bound may be +inf (no check).
             if v.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
                 return Err(Error::InvalidConfig {
                     field,
                     reason: "must be positive",
                 });
             }
-            if !field.ends_with("gate") && !v.is_finite() {
+            let may_be_inf = ["gate", "tolerance", "tolerance_rad", "bound", "std_rad"]
+                .iter()
+                .any(|e| field.ends_with(e));
+            if !may_be_inf && !v.is_finite() {
                 return Err(Error::InvalidConfig {
                     field,
                     reason: "must be finite",
@@ -267,6 +335,12 @@ impl<T: Scalar> Ekf16Config<T> {
             return Err(Error::InvalidConfig {
                 field: "mag_inclination_rad",
                 reason: "a vertical field has no heading: |inclination| must be below pi/2",
+            });
+        }
+        if self.mag_field_learning_rate > T::one() {
+            return Err(Error::InvalidConfig {
+                field: "mag_field_learning_rate",
+                reason: "must be at most 1",
             });
         }
         if self.max_imu_step_us == 0 {

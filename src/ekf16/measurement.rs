@@ -65,7 +65,7 @@
 //! field is scaled: neither Jacobian changes the quaternion's norm to first
 //! order.
 
-use super::state::{GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, quaternion_of};
+use super::state::{ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, quaternion_of};
 use crate::ekf16::process::rotation_jacobian;
 use crate::geo::rotation_matrix;
 use crate::scalar::Scalar;
@@ -264,4 +264,28 @@ pub fn mag_model_tilt_coupled<T: Scalar>(
 pub fn yaw_direction<T: Scalar>(q: &Quaternion<T>) -> nalgebra::Vector4<T> {
     let half = T::lit(0.5);
     nalgebra::Vector4::new(-q.k, -q.j, q.i, q.w) * half
+}
+
+/// The gain restriction `C` (`N x N`) of the heading-only magnetometer
+/// update: `K' = C K` (see `docs/math.md`, "Heading-only update").
+///
+/// - quaternion rows: `(dq/dpsi)(dpsi/dq)`, the correction's rotation is
+///   about the NED down axis only ([`yaw_direction`], [`heading_jacobian`]);
+///   roll and pitch cannot move;
+/// - accelerometer-bias rows: 0 (through them a heading update would move
+///   the tilt at the next steps);
+/// - gyro-bias rows: `d dᵀ` with `d = R(q)ᵀ [0, 0, 1]` the body-frame down
+///   axis: only the bias of the heading rate is corrected, not the roll and
+///   pitch rates';
+/// - every other row (position, velocity, extra states): kept.
+pub fn heading_only_restriction<T: Scalar, const N: usize>(q: &Quaternion<T>) -> SMatrix<T, N, N> {
+    let mut keep = SMatrix::<T, N, N>::identity();
+    keep.fixed_view_mut::<4, 4>(QUAT, QUAT)
+        .copy_from(&(yaw_direction(q) * heading_jacobian(q)));
+    keep.fixed_view_mut::<3, 3>(ACCEL_BIAS, ACCEL_BIAS)
+        .fill(T::zero());
+    let down = rotation_matrix(q).transpose() * Vector3::z();
+    keep.fixed_view_mut::<3, 3>(GYRO_BIAS, GYRO_BIAS)
+        .copy_from(&(down * down.transpose()));
+    keep
 }

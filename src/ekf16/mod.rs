@@ -19,9 +19,10 @@
 //! - eqs. (7)-(8): the magnetometer model holds roll and pitch at the
 //!   estimate, and its Jacobian carries the tilt error the heading inherits
 //!   from them (`tan(I)` per radian; a yaw-only Jacobian diverges with a fast
-//!   magnetometer); by default the update corrects tilt too, with
-//!   `mag_corrects_tilt = false` yaw only, as the text intends (see
-//!   [`measurement`]);
+//!   magnetometer); once the tilt is known (`mag_tilt_alignment_std_rad`)
+//!   the update corrects heading only, as the text intends: its correction
+//!   is a rotation about the NED vertical and it leaves the accelerometer
+//!   biases alone ([`measurement::heading_only_restriction`]);
 //! - eq. (9): `K = P H^T (H P H^T + R)^-1` (printed `H^T P H^T`);
 //! - additions: Joseph-form update, chi-square gating, the GPS lever arm,
 //!   and the quaternion's covariance kept in the tangent space of the unit
@@ -36,14 +37,19 @@
 //!   `P = A P A^T + Q`.
 //! - **GPS fix** ([`Navigator::push_gps`]): position then velocity, two
 //!   3-D blocks, each gated on its NIS and recorded; the velocity block is
-//!   linearized after the position update (sequential fusion). When every
-//!   fix has had both blocks rejected for `gps_reset_timeout_us` (default
-//!   5 s), position and velocity are reset to the fix: each shifted by its
-//!   innovation, its rows and columns of `P` cleared and its variances set to
-//!   the fix's `R` (ArduPilot and PX4 recover the same way); otherwise a
-//!   filter that has drifted past both gates never accepts a fix again.
-//! - **Magnetometer sample** ([`Navigator::push_mag`]): the heading-only
-//!   pseudo-measurement, gated and recorded.
+//!   linearized after the position update (sequential fusion). Each block
+//!   is reset to the fix on its own (shifted by its innovation, its rows and
+//!   columns of `P` cleared, its variances set to the fix's `R`; ArduPilot
+//!   and PX4 recover the same way) when it has been rejected in every fix
+//!   for `gps_reset_timeout_us` (default 5 s, one timer per block), or when
+//!   the mean NIS of its last `gps_nis_window` accepted fusions exceeds
+//!   `gps_nis_bound` (divergence). Counted per block and recorded
+//!   ([`Ekf16::last_gps_reset`]). Geodetic and NED fixes cannot be mixed.
+//! - **Magnetometer sample** ([`Navigator::push_mag`]): refused as disturbed
+//!   when its field norm or inclination is too far from the learned field,
+//!   gated on its heading innovation (1 DOF), then the heading
+//!   pseudo-measurement is fused and recorded (see `docs/math.md`,
+//!   "Magnetometer gating").
 //!
 //! # Initialization
 //! Before the first GPS fix the filter only listens: it averages the
@@ -89,7 +95,8 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-use nav_core::{GpsBlock, NavCore};
+pub use nav_core::GpsBlock;
+use nav_core::NavCore;
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.
@@ -118,13 +125,49 @@ pub struct RefusalCounters {
     pub mag_invalid: u32,
     /// Magnetometer samples duplicated or going back in time.
     pub mag_time: u32,
-    /// Magnetometer updates rejected by the gate.
+    /// Magnetometer updates rejected by the heading-innovation gate (`mag_gate`).
     pub mag_rejected: u32,
+    /// Magnetometer samples refused as disturbed: field norm or inclination
+    /// too far from the learned field (`mag_norm_tolerance`,
+    /// `mag_inclination_tolerance_rad`).
+    pub mag_disturbed: u32,
+    /// GPS fixes whose position kind (geodetic or NED) differs from the
+    /// first accepted fix's.
+    pub gps_mixed_frames: u32,
     /// Fusions refused because the innovation covariance had no Cholesky factor.
     pub not_positive_definite: u32,
-    /// Position and velocity reset to a fix after `gps_reset_timeout_us`
-    /// of rejected fixes.
-    pub gps_resets: u32,
+    /// Position block reset to a fix (after `gps_reset_timeout_us` of
+    /// rejected position blocks, or a divergence).
+    pub gps_position_resets: u32,
+    /// Velocity block reset to a fix (after `gps_reset_timeout_us` of
+    /// rejected velocity blocks, or a divergence).
+    pub gps_velocity_resets: u32,
+    /// Of the two reset counts above, the resets caused by a divergence: the
+    /// block's mean NIS over `gps_nis_window` fixes above `gps_nis_bound`.
+    pub gps_divergence_resets: u32,
+}
+
+/// Why a GPS block was reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GpsResetCause {
+    /// Every fix's block was rejected for `gps_reset_timeout_us`.
+    Rejected,
+    /// The block's mean NIS over `gps_nis_window` fixes exceeded
+    /// `gps_nis_bound` (accepted fusions inconsistent with the covariance).
+    Diverged,
+}
+
+/// The last reset of a GPS block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct GpsReset {
+    /// Time of the fix the block was reset to, µs.
+    pub t_us: u64,
+    /// The block.
+    pub block: GpsBlock,
+    /// Why.
+    pub cause: GpsResetCause,
 }
 
 /// The 16-state EKF of the paper (section 2.1), GPS fused without delay handling.

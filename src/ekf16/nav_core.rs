@@ -30,16 +30,23 @@
 //!   [`GpsMeasurement`] for the filter's own GPS model.
 //!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
 //!   fuse position then velocity with [`NavCore::fuse`], store the records
-//!   with [`NavCore::record_gps`]. When both blocks of every fix have been
-//!   rejected for `gps_reset_timeout_us`, it resets position and velocity to
-//!   the fix (`NavCore::reset_to_gps`, counted in
-//!   [`RefusalCounters::gps_resets`]).
+//!   with [`NavCore::record_gps`]. Each block then goes through
+//!   `NavCore::gps_block_verdict` (its own rejection timer,
+//!   `gps_reset_timeout_us`, and its NIS window, `gps_nis_window` /
+//!   `gps_nis_bound`) and, when it must, `NavCore::reset_gps_block` resets
+//!   that block alone to the fix (counted per block in [`RefusalCounters`],
+//!   recorded as the last [`GpsReset`]). Geodetic and NED fixes cannot be
+//!   mixed ([`check_position_kind`], shared with the navigator).
 //! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
 //!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
-//! - [`NavCore::push_mag`]: the heading-only magnetometer update of
+//! - [`NavCore::push_mag`]: the magnetometer update of
 //!   [`measurement`](super::measurement) (or keeps the sample for
-//!   initialization).
+//!   initialization): refused as disturbed when the field norm or
+//!   inclination is off the learned field, gated on the heading innovation,
+//!   heading-only once the tilt standard deviation is below
+//!   `mag_tilt_alignment_std_rad` (the gain restricted by
+//!   [`measurement::heading_only_restriction`](super::measurement::heading_only_restriction)).
 //! - [`NavCore::reset_extra_state`] and [`NavCore::clamp_extra_state`]: the
 //!   two ways a filter may change an extra state from outside the Kalman
 //!   algebra. A reset sets the value and variance and drops the state's
@@ -50,7 +57,6 @@
 //!   [`RefusalCounters`] field.
 //! - No allocation: every buffer is a fixed-size nalgebra type.
 
-use super::RefusalCounters;
 use super::config::Ekf16Config;
 use super::measurement;
 use super::process;
@@ -58,6 +64,7 @@ use super::state::{
     ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, WxyzCoords,
     attitude_covariance, quaternion_of,
 };
+use super::{GpsReset, GpsResetCause, RefusalCounters};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
@@ -86,14 +93,23 @@ pub(crate) struct ExtraState<T: Scalar> {
 /// Mean of the last samples of a vector: a running mean up to `window`
 /// samples, then an exponential mean of weight `1 / window`. No storage
 /// beyond the mean.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct BoundedMean<T: Scalar> {
-    mean: Vector3<T>,
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BoundedMean<T: Scalar, const D: usize = 3> {
+    mean: SVector<T, D>,
     count: u32,
 }
 
-impl<T: Scalar> BoundedMean<T> {
-    fn push(&mut self, v: &Vector3<T>, window: u32) {
+impl<T: Scalar, const D: usize> Default for BoundedMean<T, D> {
+    fn default() -> Self {
+        Self {
+            mean: SVector::zeros(),
+            count: 0,
+        }
+    }
+}
+
+impl<T: Scalar, const D: usize> BoundedMean<T, D> {
+    fn push(&mut self, v: &SVector<T, D>, window: u32) {
         if self.count < window {
             self.count += 1;
         }
@@ -137,6 +153,31 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
             p[(j, QUAT + r)] = v;
         }
     }
+}
+
+/// Whether a fix's position is geodetic, checked against the kind of the
+/// first accepted fix (`first`: `Some(true)` geodetic, `Some(false)` NED):
+/// one run cannot mix them (a geodetic fix after NED ones would silently
+/// become the origin of the frame). The one check of every estimator.
+pub(crate) fn check_position_kind<T: Scalar>(
+    first: Option<bool>,
+    position: &GpsPosition<T>,
+) -> Result<bool, Error> {
+    let geodetic = matches!(position, GpsPosition::Geodetic(_));
+    if first.is_some_and(|g| g != geodetic) {
+        return Err(Error::OutOfRange {
+            field: "gps.position",
+            reason: "geodetic and NED fixes cannot be mixed in one run",
+        });
+    }
+    Ok(geodetic)
+}
+
+/// Inclination (rad, down from horizontal) of a body field `m_b` seen
+/// through the body-to-NED rotation `rot`: `asin((R m_b)_down / |m_b|)`.
+fn field_inclination<T: Scalar>(rot: &Matrix3<T>, field_body: &Vector3<T>) -> T {
+    let down = (rot * field_body)[2] / field_body.norm();
+    down.max(-T::one()).min(T::one()).asin()
 }
 
 /// A checked GPS fix in the filter's NED frame, ready for a GPS model.
@@ -198,13 +239,27 @@ macro_rules! core_accessors {
         pub fn refusals(&self) -> RefusalCounters {
             self.core.refusals()
         }
+
+        /// Standard deviation of the tilt, rad: the larger of the north and
+        /// east components of the attitude error (NED), from the covariance.
+        /// Below `mag_tilt_alignment_std_rad` the magnetometer corrects
+        /// heading only.
+        pub fn tilt_std(&self) -> T {
+            self.core.tilt_std()
+        }
+
+        /// The last reset of a GPS block (which block, why, when).
+        pub fn last_gps_reset(&self) -> Option<$crate::ekf16::GpsReset> {
+            self.core.last_gps_reset()
+        }
     };
 }
 pub(crate) use core_accessors;
 
 /// The two halves of a GPS fix, fused one after the other.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum GpsBlock {
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum GpsBlock {
     /// Antenna position, NED.
     Position,
     /// Antenna velocity, NED.
@@ -235,9 +290,22 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     frame: Option<LocalFrame>,
     last_gps: Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
     last_mag: Option<FusionRecord<T, 3>>,
-    /// Time of the last fix that initialized the filter or had a block fused
-    /// (or of the first rejected fix of a filter started from a state).
-    last_gps_accepted_us: Option<u64>,
+    /// Per GPS block (position, velocity): time of the last fix that
+    /// initialized the filter, had the block fused or reset it (or of the
+    /// first rejected fix of a filter started from a state).
+    gps_accepted_us: [Option<u64>; 2],
+    /// Per GPS block: sum and count of the NIS of the accepted fusions of
+    /// the current divergence window.
+    gps_nis: [(T, u32); 2],
+    last_gps_reset: Option<GpsReset>,
+    /// Whether the fixes are geodetic (`Some(true)`) or NED, from the first.
+    geodetic_fixes: Option<bool>,
+    /// Mean field norm of the magnetometer samples before initialization.
+    mag_norm_mean: BoundedMean<T, 1>,
+    /// The learned field: norm (sensor units) and inclination (rad, down
+    /// from horizontal), set at initialization or by the first sample after
+    /// it, then followed slowly by the accepted samples.
+    mag_field: Option<(T, T)>,
     refusals: RefusalCounters,
 }
 
@@ -274,7 +342,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             frame: config.origin.map(LocalFrame::new),
             last_gps: None,
             last_mag: None,
-            last_gps_accepted_us: None,
+            gps_accepted_us: [None; 2],
+            gps_nis: [(T::zero(), 0); 2],
+            last_gps_reset: None,
+            geodetic_fixes: None,
+            mag_norm_mean: BoundedMean::default(),
+            mag_field: None,
             refusals: RefusalCounters::default(),
         };
         for (i, e) in extras.iter().enumerate() {
@@ -376,6 +449,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// Refusal counters.
     pub(crate) fn refusals(&self) -> RefusalCounters {
         self.refusals
+    }
+
+    /// The last reset of a GPS block.
+    pub(crate) fn last_gps_reset(&self) -> Option<GpsReset> {
+        self.last_gps_reset
     }
 
     /// The last GPS fusion records (position, velocity).
@@ -560,6 +638,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
         check_time("gps", self.gps_clock_us, fix.t_us)
             .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
+        let geodetic = check_position_kind(self.geodetic_fixes, &fix.position)
+            .inspect_err(|_| bump(&mut self.refusals.gps_mixed_frames))?;
         let (frame, position) = match fix.position {
             GpsPosition::Ned(p) => (self.frame, p),
             GpsPosition::Geodetic(g) => {
@@ -589,6 +669,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             position_noise: Matrix3::from_diagonal(&Vector3::new(h, h, v)),
             velocity_noise: Matrix3::identity() * s,
         };
+        self.geodetic_fixes = Some(geodetic);
         if self.initialized {
             self.gps_clock_us = Some(fix.t_us);
             self.frame = frame;
@@ -599,7 +680,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             return Ok(GpsStep::Waiting);
         }
         self.initialize(&m)?;
-        self.last_gps_accepted_us = Some(fix.t_us);
+        self.gps_accepted_us = [Some(fix.t_us); 2];
+        self.gps_nis = [(T::zero(), 0); 2];
         self.gps_clock_us = Some(fix.t_us);
         self.frame = frame;
         Ok(GpsStep::Initialized)
@@ -619,6 +701,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         let q = quaternion_from_euler(roll, pitch, yaw);
         let rot = rotation_matrix(q.quaternion());
+        if self.mag_mean.count > 0 {
+            let norm = self.mag_norm_mean.mean[0];
+            let inclination = field_inclination(&rot, &self.mag_mean.mean);
+            self.mag_field = Some((norm, inclination));
+        }
         let gyro = self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
         let mut x = self.extra_initial;
         x.fixed_rows_mut::<4>(QUAT)
@@ -749,54 +836,106 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         )?;
         after_fusion(self);
         self.record_gps(position, velocity);
-        if position.fused || velocity.fused {
-            self.last_gps_accepted_us = Some(m.t_us);
-        } else if self.gps_rejected_too_long(m.t_us) {
-            self.reset_to_gps(&position.innovation, &velocity.innovation, &m);
-            self.last_gps_accepted_us = Some(m.t_us);
-        } else {
-            // A filter started from a given state: count from this rejection.
-            self.last_gps_accepted_us.get_or_insert(m.t_us);
+        for (block, record, gate) in [
+            (GpsBlock::Position, &position, self.config.gps_position_gate),
+            (GpsBlock::Velocity, &velocity, self.config.gps_velocity_gate),
+        ] {
+            if let Some(cause) = self.gps_block_verdict(block, record, gate) {
+                // Linearized again: the other block's fusion moved the state.
+                let (h, _, _) = model(self, block, &m);
+                self.reset_gps_block(block, &h, &m, cause);
+            }
         }
         Ok(GpsOutcome::Fused { position, velocity })
     }
 
-    /// Whether every fix since the last accepted one, up to `t_us`, was
-    /// rejected for at least `gps_reset_timeout_us` (never when it is 0).
-    fn gps_rejected_too_long(&self, t_us: u64) -> bool {
-        let timeout = self.config.gps_reset_timeout_us;
-        timeout > 0
-            && self
-                .last_gps_accepted_us
-                .is_some_and(|t| t_us.saturating_sub(t) >= timeout)
+    /// Updates a GPS block's rejection timer and divergence window with the
+    /// record of its fusion; returns why the block must be reset, if it must.
+    ///
+    /// - Rejected: the block of every fix since the last accepted one was
+    ///   rejected for at least `gps_reset_timeout_us` (never when it is 0).
+    /// - Diverged: the mean NIS of the last `gps_nis_window` accepted
+    ///   fusions (consecutive windows, no overlap) is above `gps_nis_bound`
+    ///   (never when the window is 0).
+    fn gps_block_verdict(
+        &mut self,
+        block: GpsBlock,
+        record: &FusionRecord<T, 3>,
+        gate: T,
+    ) -> Option<GpsResetCause> {
+        let i = block as usize;
+        let t_us = record.t_us;
+        if !record.fused {
+            let timeout = self.config.gps_reset_timeout_us;
+            // A filter started from a given state: count from this rejection.
+            let since = *self.gps_accepted_us[i].get_or_insert(t_us);
+            return (timeout > 0 && t_us.saturating_sub(since) >= timeout)
+                .then_some(GpsResetCause::Rejected);
+        }
+        self.gps_accepted_us[i] = Some(t_us);
+        let window = self.config.gps_nis_window;
+        if window == 0 {
+            return None;
+        }
+        let (sum, count) = &mut self.gps_nis[i];
+        *sum += record.test_ratio * gate;
+        *count += 1;
+        if *count < window {
+            return None;
+        }
+        let mean = *sum / T::lit(f64::from(*count));
+        self.gps_nis[i] = (T::zero(), 0);
+        (mean > self.config.gps_nis_bound).then_some(GpsResetCause::Diverged)
     }
 
-    /// Resets position and velocity to a fix both of whose blocks were
-    /// rejected: each is shifted by its innovation `z - h(x)` (so the
-    /// filter's own GPS model, lever arm and delay term included, then
-    /// predicts the fix), their rows and columns of `P` are cleared and their
-    /// variances set to the fix's noise `R`. `P` stays symmetric PSD (a
-    /// block-diagonal of PSD blocks). Attitude, biases and extra states keep
-    /// their values.
-    fn reset_to_gps(
+    /// Resets one GPS block to the fix: the states are shifted by the
+    /// innovation `z - h(x)` (`h` the filter's own model at the current
+    /// state, lever arm and delay term included, so it then predicts the
+    /// fix), their rows and columns of `P` are cleared and their variances
+    /// set to the fix's noise `R`. `P` stays symmetric PSD (a block-diagonal
+    /// of PSD blocks). Every other state keeps its value. Counted per block,
+    /// recorded with its cause, and the block's timer and window restart.
+    fn reset_gps_block(
         &mut self,
-        position_innovation: &Vector3<T>,
-        velocity_innovation: &Vector3<T>,
+        block: GpsBlock,
+        h: &Vector3<T>,
         m: &GpsMeasurement<T>,
+        cause: GpsResetCause,
     ) {
-        for (start, innovation, noise) in [
-            (POS, position_innovation, &m.position_noise),
-            (VEL, velocity_innovation, &m.velocity_noise),
-        ] {
-            for i in 0..3 {
-                let k = start + i;
-                self.x[k] += innovation[i];
-                self.p.row_mut(k).fill(T::zero());
-                self.p.column_mut(k).fill(T::zero());
-                self.p[(k, k)] = noise[(i, i)];
-            }
+        let (start, z, noise, counter) = match block {
+            GpsBlock::Position => (
+                POS,
+                m.position_ned_m,
+                &m.position_noise,
+                &mut self.refusals.gps_position_resets,
+            ),
+            GpsBlock::Velocity => (
+                VEL,
+                m.velocity_ned_m_s,
+                &m.velocity_noise,
+                &mut self.refusals.gps_velocity_resets,
+            ),
+        };
+        bump(counter);
+        let innovation = z - h;
+        for i in 0..3 {
+            let k = start + i;
+            self.x[k] += innovation[i];
+            self.p.row_mut(k).fill(T::zero());
+            self.p.column_mut(k).fill(T::zero());
+            self.p[(k, k)] = noise[(i, i)];
         }
-        bump(&mut self.refusals.gps_resets);
+        if cause == GpsResetCause::Diverged {
+            bump(&mut self.refusals.gps_divergence_resets);
+        }
+        let i = block as usize;
+        self.gps_accepted_us[i] = Some(m.t_us);
+        self.gps_nis[i] = (T::zero(), 0);
+        self.last_gps_reset = Some(GpsReset {
+            t_us: m.t_us,
+            block,
+            cause,
+        });
     }
 
     /// Stores the records of one GPS fusion and counts rejections.
@@ -827,8 +966,13 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.mag_clock_us = Some(m.t_us);
             self.mag_mean
                 .push(&m.field_body.normalize(), self.config.align_window);
+            self.mag_norm_mean.push(
+                &SVector::<T, 1>::new(m.field_body.norm()),
+                self.config.align_window,
+            );
             return Ok(MagOutcome::Stored);
         }
+        let field = self.check_mag_field(&m.field_body);
         let c = &self.config;
         let x16 = self.nav_state();
         let euler = euler_from_quaternion(&quaternion_of(&x16));
@@ -839,16 +983,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);
         let (hx, h16) = measurement::mag_model_tilt_coupled(&x16, roll, pitch, &field_ned);
         let r = Matrix3::identity() * c.mag_noise_variance;
-        let gate = c.mag_gate;
-        // Yaw-only mode: the quaternion's correction keeps only its heading
-        // component, `dq/dpsi (dpsi/dq dq)`, a pure rotation about down.
-        let restriction = (!c.mag_corrects_tilt).then(|| {
-            let q = quaternion_of(&x16);
-            let mut keep = SMatrix::<T, N, N>::identity();
-            keep.fixed_view_mut::<4, 4>(QUAT, QUAT)
-                .copy_from(&(measurement::yaw_direction(&q) * measurement::heading_jacobian(&q)));
-            keep
-        });
+        // A disturbed sample goes through the gate of 0: rejected, with its record.
+        let gate = if field.is_some() {
+            c.mag_gate
+        } else {
+            T::zero()
+        };
+        let q = quaternion_of(&x16);
+        let aligning = self.tilt_std() > c.mag_tilt_alignment_std_rad;
+        let restriction =
+            (!(c.mag_corrects_tilt || aligning)).then(|| measurement::heading_only_restriction(&q));
         let record = self.fuse_restricted(
             m.t_us,
             &(z - hx),
@@ -858,12 +1002,60 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             "mag",
             restriction.as_ref(),
         )?;
+        let mut record = record;
         self.mag_clock_us = Some(m.t_us);
-        if !record.fused {
-            bump(&mut self.refusals.mag_rejected);
+        match field {
+            Some(sample) if record.fused => self.learn_mag_field(sample),
+            Some(_) => bump(&mut self.refusals.mag_rejected),
+            None => {
+                record.test_ratio = T::lit(f64::INFINITY);
+                bump(&mut self.refusals.mag_disturbed);
+            }
         }
         self.last_mag = Some(record);
         Ok(MagOutcome::Fused(record))
+    }
+
+    /// The field norm and inclination of a magnetometer sample (the
+    /// inclination seen with the estimated attitude); `None` when either is
+    /// too far from the learned field: a disturbance. The first sample of a
+    /// filter that learned no field passes as it is.
+    fn check_mag_field(&self, field_body: &Vector3<T>) -> Option<(T, T)> {
+        let rot = rotation_matrix(&quaternion_of(&self.x));
+        let sample = (field_body.norm(), field_inclination(&rot, field_body));
+        let Some((norm, inclination)) = self.mag_field else {
+            return Some(sample);
+        };
+        let c = &self.config;
+        // `!(a <= b)` also refuses NaN.
+        let norm_ok = (sample.0 / norm - T::one()).abs() <= c.mag_norm_tolerance;
+        let inclination_ok = (sample.1 - inclination).abs() <= c.mag_inclination_tolerance_rad;
+        (norm_ok && inclination_ok).then_some(sample)
+    }
+
+    /// The larger of the north and east standard deviations (rad) of the
+    /// attitude error `dtheta = 2 vec(dq ⊗ q*)` (NED), from `P`:
+    /// `dtheta = G dq`, `G = 2 [-v | w I + [v×]]` for `q = (w, v)`.
+    pub(crate) fn tilt_std(&self) -> T {
+        let q = quaternion_of(&self.x);
+        let v = q.imag();
+        let mut g = SMatrix::<T, 3, 4>::zeros();
+        g.set_column(0, &(-v));
+        g.fixed_view_mut::<3, 3>(0, 1)
+            .copy_from(&(Matrix3::identity() * q.w + v.cross_matrix()));
+        g *= T::lit(2.0);
+        let cov = g * self.p.fixed_view::<4, 4>(QUAT, QUAT) * g.transpose();
+        cov[(0, 0)].max(cov[(1, 1)]).max(T::zero()).sqrt()
+    }
+
+    /// Moves the learned field toward an accepted sample's norm and
+    /// inclination by `mag_field_learning_rate` (an exponential mean).
+    fn learn_mag_field(&mut self, sample: (T, T)) {
+        let w = self.config.mag_field_learning_rate;
+        self.mag_field = Some(match self.mag_field {
+            None => sample,
+            Some((n, i)) => (n + (sample.0 - n) * w, i + (sample.1 - i) * w),
+        });
     }
 
     /// The current solution, `None` until initialized.

@@ -24,7 +24,7 @@
 
 use super::NavRefusals;
 use crate::delay::DelayStatus;
-use crate::ekf16::RefusalCounters;
+use crate::ekf16::{GpsReset, RefusalCounters};
 use crate::scalar::Scalar;
 
 /// Longest time since the last fused GPS fix for velocity and position to
@@ -62,6 +62,9 @@ pub enum ResetCause {
     /// An IMU gap longer than the EKF's `max_imu_step_us` restarted the
     /// history (the EKF state is kept).
     ImuGap,
+    /// The horizon EKF reset one GPS block (position or velocity) to a fix:
+    /// sustained rejection or divergence (the record says which).
+    Gps(GpsReset),
 }
 
 /// The last reset.

@@ -112,6 +112,7 @@ use crate::delay::{
     DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
     WhiteningFir,
 };
+use crate::ekf16::nav_core::check_position_kind;
 use crate::ekf16::state::{
     ACCEL_BIAS, GYRO_BIAS, POS, QUAT, VEL, attitude_covariance, quaternion_of,
 };
@@ -121,7 +122,7 @@ use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
 use crate::scalar::Scalar;
 use crate::sensors::{
-    GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
+    GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
@@ -869,14 +870,8 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 reason: "beyond the plausible range",
             });
         }
-        let geodetic = matches!(fix.position, GpsPosition::Geodetic(_));
-        if self.geodetic_fixes.is_some_and(|g| g != geodetic) {
-            bump(&mut self.refusals.gps_mixed_frames);
-            return Err(Error::OutOfRange {
-                field: "gps.position",
-                reason: "geodetic and NED fixes cannot be mixed in one run",
-            });
-        }
+        let geodetic = check_position_kind(self.geodetic_fixes, &fix.position)
+            .inspect_err(|_| bump(&mut self.refusals.gps_mixed_frames))?;
         let newest_imu = self.imu_clock.last();
         let max_jump = self.config.max_time_jump_us;
         let mut clock = self.gps_clock;
@@ -898,7 +893,16 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             self.gps_clock = clock;
             return Ok(GpsOutcome::Waiting);
         }
+        let resets_before = self.ekf.last_gps_reset();
         let outcome = self.ekf.push_gps(&fix)?;
+        if let Some(reset) = self.ekf.last_gps_reset()
+            && resets_before != Some(reset)
+        {
+            self.last_reset = Some(ResetRecord {
+                t_us: self.imu_clock.last(),
+                cause: ResetCause::Gps(reset),
+            });
+        }
         self.gps_clock = clock;
         self.geodetic_fixes = Some(geodetic);
         if self.is_estimating() {
