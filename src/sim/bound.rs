@@ -42,9 +42,11 @@
 //!   instant the fix describes (`t - tau`, the true delay);
 //! - the magnetometer ([`BoundMagnetometer`]): by default the whole field,
 //!   `m_b = R^T m_n + n_m`, `H = [R^T [m_n]x, 0...]`, variance `s_m²` per
-//!   axis: two degrees of attitude, tilt included (the crate's filters also
-//!   take tilt from it: their heading update is tilt-coupled,
-//!   `Ekf16Config::mag_corrects_tilt`); or a heading alone,
+//!   axis: two degrees of attitude, tilt included (the crate's filters take
+//!   tilt from it only while aligning, or with
+//!   `Ekf16Config::mag_corrects_tilt`; by default their update is
+//!   heading-only once the tilt is known, so [`BoundMagnetometer::Heading`]
+//!   is their fair yardstick); or a heading alone,
 //!   `H = [tan(theta) cos(psi), tan(theta) sin(psi), 1, 0...]` (the ZYX yaw
 //!   change of a rotation-vector error `phi`), variance `s_m² / cos² I`, the
 //!   model of [`noise_floor`](super::noise_floor()).
