@@ -43,10 +43,16 @@ pub const TABLE3_GPS_VELOCITY_VARIANCE: f64 = 0.1;
 /// is that of the scalar heading (see `docs/math.md`).
 pub const MAG_HEADING_GATE_3_SIGMA: f64 = 9.0;
 /// Default bound on the mean NIS of a GPS block over
-/// [`DEFAULT_GPS_NIS_WINDOW`] accepted fusions: the chi-square quantile of
-/// `3 x 20 = 60` degrees of freedom at a one-sided 5-sigma tail (2.9e-7),
-/// divided by 20 (Wilson-Hilferty: 132 / 20).
-pub const DEFAULT_GPS_NIS_BOUND: f64 = 6.6;
+/// [`DEFAULT_GPS_NIS_WINDOW`] accepted fusions: 20, innovations 2.6 times
+/// the filter's own sigma on average over 20 fixes. It marks gross
+/// divergence, not mere inconsistency: a consistent filter's mean is 3 and
+/// exceeds 6.6 with probability 2.9e-7 (the chi-square quantile of 60
+/// degrees of freedom at a one-sided 5-sigma tail, / 20), but a filter that is
+/// only overconfident under strong manoeuvres (the augmented baseline in the
+/// simulator's `high` scenario, NEES ~11) crossed 6.6 and 12 there, and each
+/// reset threw away its velocity: `high` velocity RMSE 0.18 m/s at 20 (no
+/// resets), 0.22 at 12, 0.31 at 6.6 (`reproduce --scenario high --seeds 4`).
+pub const DEFAULT_GPS_NIS_BOUND: f64 = 20.0;
 /// Default divergence window of a GPS block, accepted fusions.
 pub const DEFAULT_GPS_NIS_WINDOW: u32 = 20;
 /// The paper's IMU rate, Hz.
