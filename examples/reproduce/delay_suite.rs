@@ -332,17 +332,11 @@ fn median_rmse_ms(traces: &[DelayTrace]) -> f64 {
 }
 
 /// Median that keeps infinite values (a run that never settled) in order.
-fn median_with_infinity(mut xs: Vec<f64>) -> f64 {
-    if xs.is_empty() || xs.iter().any(|x| x.is_nan()) {
+fn median_with_infinity(xs: Vec<f64>) -> f64 {
+    if xs.iter().any(|x| x.is_nan()) {
         return f64::NAN;
     }
-    xs.sort_by(f64::total_cmp);
-    let n = xs.len();
-    if n % 2 == 1 {
-        xs[n / 2]
-    } else {
-        0.5 * (xs[n / 2 - 1] + xs[n / 2])
-    }
+    super::median_ordered(xs)
 }
 
 fn rmse_row(

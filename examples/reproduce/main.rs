@@ -683,8 +683,17 @@ enum Sample<T: Scalar> {
 }
 
 /// Median of finite values; NaN when any is not finite (a failed run shows).
-fn median(mut xs: Vec<f64>) -> f64 {
-    if xs.is_empty() || xs.iter().any(|x| !x.is_finite()) {
+fn median(xs: Vec<f64>) -> f64 {
+    if xs.iter().any(|x| !x.is_finite()) {
+        return f64::NAN;
+    }
+    median_ordered(xs)
+}
+
+/// Median in `f64::total_cmp` order (infinities sort to the ends); NaN for
+/// no values.
+pub(crate) fn median_ordered(mut xs: Vec<f64>) -> f64 {
+    if xs.is_empty() {
         return f64::NAN;
     }
     xs.sort_by(f64::total_cmp);
