@@ -25,18 +25,16 @@
 //! A failing case is shrunk by proptest, then by dropping operations one at
 //! a time ([`minimize`]), and printed as `start` and `ops`.
 //!
-//! Two known bugs, each kept as an ignored test with its minimal input, are
-//! left out of the default machines (two more, tiny reported accuracies
-//! [`tiny_speed_accuracy`] and NED fixes at the largest floats
-//! [`nav_huge_ned_fix`], are fixed: their inputs are in every machine and
-//! their minimal cases run as regression tests):
+//! One known bug, kept as an ignored test with its minimal input, is left
+//! out of the default machines (three more, tiny reported accuracies
+//! [`tiny_speed_accuracy`], NED fixes at the largest floats
+//! [`nav_huge_ned_fix`] and the navigator's EKF counters going back to zero
+//! [`nav_keeps_ekf_refusals`], are fixed: their inputs are in every machine
+//! and their minimal cases run as regression tests):
 //! - long IMU gaps ([`long_imu_gap`]): no jump ahead beyond 1 min, no
 //!   `u64::MAX` or random absolute stamps after the clock started
 //!   (`u64::MAX` stamps are in [`u64_max_stamps_then_back`] and
-//!   [`nav_estimated_imu_near_u64_max`]);
-//! - the navigator's EKF counters going back to zero
-//!   ([`nav_keeps_ekf_refusals`]): tolerated by re-counting from the rebuilt
-//!   EKF.
+//!   [`nav_estimated_imu_near_u64_max`]).
 //!
 //! The ignored `full_machine_*` tests run without these allowances
 //! (`cargo test --all-features --test push_api -- --ignored`).
@@ -417,10 +415,6 @@ struct Driver<T: Scalar, S: Subject<T>> {
     cursor: u64,
     /// Calls so far (for the messages).
     calls: u64,
-    /// Whether the EKF's counters must never go down (false: the known bug
-    /// of [`nav_keeps_ekf_refusals`] is tolerated: when they drop, the
-    /// navigator rebuilt its EKF and only the new EKF's counts are taken).
-    strict: bool,
     /// Calls after which `estimate()` was `Some`.
     estimated_calls: u64,
     _t: core::marker::PhantomData<T>,
@@ -445,14 +439,9 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
         let refused = f(&mut self.s);
         let (own_after, ekf_after) = self.s.refusal_sums();
         let (before, after) = (own + ekf, own_after + ekf_after);
-        let counted = if self.strict || ekf_after >= ekf {
-            after.saturating_sub(before)
-        } else {
-            own_after.saturating_sub(own) + ekf_after
-        };
+        let counted = after.saturating_sub(before);
         prop_assert!(
-            (self.strict && after >= before || !self.strict && own_after >= own)
-                && counted >= refused,
+            after >= before && counted >= refused,
             "call {} ({what}): {refused} refusal(s) but the counters went {before} -> {after}",
             self.calls
         );
@@ -579,7 +568,7 @@ fn machine<T: Scalar, S: Subject<T>>(make: impl Fn() -> S, full: bool) {
     let mut runner = TestRunner::new(config);
     let aligned = std::cell::Cell::new(0u32);
     let outcome = runner.run(&case(full), |(start, ops)| {
-        let d = replay(make(), start, &ops, full)?;
+        let d = replay(make(), start, &ops)?;
         aligned.set(aligned.get() + u32::from(d.estimated_calls > 0));
         Ok(())
     });
@@ -595,8 +584,8 @@ fn machine<T: Scalar, S: Subject<T>>(make: impl Fn() -> S, full: bool) {
             println!("{} of {cases} cases reached an estimate", aligned.get());
         }
         Err(TestError::Fail(_, (start, ops))) => {
-            let (start, ops) = minimize(&make, start, ops, full);
-            let why = replay(make(), start, &ops, full).err();
+            let (start, ops) = minimize(&make, start, ops);
+            let why = replay(make(), start, &ops).err();
             panic!("{why:?}\nminimal case: start {start:?}, ops {ops:?}");
         }
         Err(e) => panic!("{e}"),
@@ -609,9 +598,8 @@ fn minimize<T: Scalar, S: Subject<T>>(
     make: &impl Fn() -> S,
     mut start: Option<u32>,
     mut ops: Vec<Op>,
-    strict: bool,
 ) -> (Option<u32>, Vec<Op>) {
-    let fails = |start: Option<u32>, ops: &[Op]| replay(make(), start, ops, strict).is_err();
+    let fails = |start: Option<u32>, ops: &[Op]| replay(make(), start, ops).is_err();
     if start.is_some() && fails(None, &ops) {
         start = None;
     }
@@ -638,13 +626,11 @@ fn replay<T: Scalar, S: Subject<T>>(
     s: S,
     start: Option<u32>,
     ops: &[Op],
-    strict: bool,
 ) -> Result<Driver<T, S>, TestCaseError> {
     let mut d = Driver {
         s,
         cursor: 1_000_000,
         calls: 0,
-        strict,
         estimated_calls: 0,
         _t: core::marker::PhantomData,
     };
@@ -704,13 +690,13 @@ macro_rules! machines {
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, nav_keeps_ekf_refusals"]
+            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_estimated() {
                 machine(nav_estimated, true);
             }
 
             #[test]
-            #[ignore = "reason: known bugs long_imu_gap, nav_keeps_ekf_refusals"]
+            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_fixed() {
                 machine(nav_fixed, true);
             }
@@ -736,10 +722,10 @@ machines! {
 }
 
 /// Every estimator of both precisions through `ops` after a 1 s calm
-/// start, strict; the failures, one line each.
+/// start; the failures, one line each.
 fn all_estimators(ops: &[Op]) -> Vec<String> {
     fn run<T: Scalar, S: Subject<T>>(name: &str, s: S, ops: &[Op], out: &mut Vec<String>) {
-        if let Err(e) = replay(s, Some(1_000), ops, true) {
+        if let Err(e) = replay(s, Some(1_000), ops) {
             out.push(format!("{name}: {e}"));
         }
     }
@@ -846,7 +832,7 @@ fn long_imu_gap() {
         },
         Op::Calm(260),
     ];
-    if let Err(e) = replay(f32_::aekf17(), None, &two_hours, true) {
+    if let Err(e) = replay(f32_::aekf17(), None, &two_hours) {
         failures.push(format!("2 h after a tilted start, f32 aekf17: {e}"));
     }
     // Three jumps of 10 min on the GPS and IMU clocks (machine, 2000 cases):
@@ -895,10 +881,10 @@ fn long_imu_gap() {
             field: [0.1, 0.0, 0.3],
         },
     ];
-    if let Err(e) = replay(f32_::aekf17(), None, &thirty_min, true) {
+    if let Err(e) = replay(f32_::aekf17(), None, &thirty_min) {
         failures.push(format!("3 x 10 min, f32 aekf17: {e}"));
     }
-    if let Err(e) = replay(f64_::aekf17(), None, &thirty_min, true) {
+    if let Err(e) = replay(f64_::aekf17(), None, &thirty_min) {
         failures.push(format!("3 x 10 min, f64 aekf17: {e}"));
     }
     assert!(failures.is_empty(), "{failures:#?}");
@@ -916,7 +902,6 @@ fn long_imu_gap() {
 /// down (position gated), reset; (b) 0.3 s calm, reset, 0.1 s calm, one IMU
 /// sample 250.001 ms later (a gap), 0.1 s calm (the alignment's rebuild).
 #[test]
-#[ignore = "reason: the nav rebuilds its EKF and drops its refusal counters (src/nav/mod.rs reset, refine_alignment)"]
 fn nav_keeps_ekf_refusals() {
     let gated_then_reset = [
         Op::Gps {
@@ -939,7 +924,7 @@ fn nav_keeps_ekf_refusals() {
             DelayMode::Fixed { delay_s: 0.1 },
             DelayMode::Estimated { initial_s: 0.1 },
         ] {
-            if let Err(e) = replay(nav::<f64>(mode), Some(300), ops, true) {
+            if let Err(e) = replay(nav::<f64>(mode), Some(300), ops) {
                 failures.push(format!("{mode:?}: {e}"));
             }
         }
@@ -964,15 +949,11 @@ fn nav_estimated_imu_near_u64_max() {
     for (name, result) in [
         (
             "f32",
-            std::panic::catch_unwind(|| {
-                replay(f32_::nav_estimated(), Some(1_000), &ops, true).err()
-            }),
+            std::panic::catch_unwind(|| replay(f32_::nav_estimated(), Some(1_000), &ops).err()),
         ),
         (
             "f64",
-            std::panic::catch_unwind(|| {
-                replay(f64_::nav_estimated(), Some(1_000), &ops, true).err()
-            }),
+            std::panic::catch_unwind(|| replay(f64_::nav_estimated(), Some(1_000), &ops).err()),
         ),
     ] {
         match result {
@@ -1016,10 +997,10 @@ fn tiny_speed_accuracy() {
         },
     ];
     let mut failures = Vec::new();
-    if let Err(e) = replay(f64_::ekf16(), Some(1_154), &ops, true) {
+    if let Err(e) = replay(f64_::ekf16(), Some(1_154), &ops) {
         failures.push(format!("f64 ekf16: {e}"));
     }
-    if let Err(e) = replay(f32_::ekf16(), Some(1_154), &ops, true) {
+    if let Err(e) = replay(f32_::ekf16(), Some(1_154), &ops) {
         failures.push(format!("f32 ekf16: {e}"));
     }
     assert!(failures.is_empty(), "{failures:#?}");
@@ -1052,10 +1033,10 @@ fn nav_huge_ned_fix() {
         Op::Calm(89),
     ];
     let mut failures = Vec::new();
-    if let Err(e) = replay(f32_::nav_fixed(), None, &f32_ops, true) {
+    if let Err(e) = replay(f32_::nav_fixed(), None, &f32_ops) {
         failures.push(format!("f32 nav fixed: {e}"));
     }
-    if let Err(e) = replay(f64_::nav_fixed(), None, &f64_ops, true) {
+    if let Err(e) = replay(f64_::nav_fixed(), None, &f64_ops) {
         failures.push(format!("f64 nav fixed: {e}"));
     }
     assert!(failures.is_empty(), "{failures:#?}");

@@ -147,6 +147,46 @@ pub struct RefusalCounters {
     pub gps_divergence_resets: u32,
 }
 
+impl RefusalCounters {
+    /// Field-wise sum (saturating): the counters of a filter that replaced
+    /// another added to those of the one it replaced.
+    pub fn merged(self, other: Self) -> Self {
+        Self {
+            imu_non_finite: self.imu_non_finite.saturating_add(other.imu_non_finite),
+            imu_out_of_range: self.imu_out_of_range.saturating_add(other.imu_out_of_range),
+            imu_time: self.imu_time.saturating_add(other.imu_time),
+            imu_step_too_long: self
+                .imu_step_too_long
+                .saturating_add(other.imu_step_too_long),
+            gps_invalid: self.gps_invalid.saturating_add(other.gps_invalid),
+            gps_time: self.gps_time.saturating_add(other.gps_time),
+            gps_position_rejected: self
+                .gps_position_rejected
+                .saturating_add(other.gps_position_rejected),
+            gps_velocity_rejected: self
+                .gps_velocity_rejected
+                .saturating_add(other.gps_velocity_rejected),
+            mag_invalid: self.mag_invalid.saturating_add(other.mag_invalid),
+            mag_time: self.mag_time.saturating_add(other.mag_time),
+            mag_rejected: self.mag_rejected.saturating_add(other.mag_rejected),
+            mag_disturbed: self.mag_disturbed.saturating_add(other.mag_disturbed),
+            gps_mixed_frames: self.gps_mixed_frames.saturating_add(other.gps_mixed_frames),
+            not_positive_definite: self
+                .not_positive_definite
+                .saturating_add(other.not_positive_definite),
+            gps_position_resets: self
+                .gps_position_resets
+                .saturating_add(other.gps_position_resets),
+            gps_velocity_resets: self
+                .gps_velocity_resets
+                .saturating_add(other.gps_velocity_resets),
+            gps_divergence_resets: self
+                .gps_divergence_resets
+                .saturating_add(other.gps_divergence_resets),
+        }
+    }
+}
+
 /// Why a GPS block was reset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

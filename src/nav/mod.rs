@@ -306,6 +306,8 @@ impl<T: Scalar> Whitening<T> {
 pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     config: NavConfig<T>,
     ekf: Ekf16<T>,
+    /// Counters of the horizon filters `ekf` replaced.
+    replaced_ekf_refusals: RefusalCounters,
     delay_loop: DefaultDelayLoop<T>,
     accel_whitening: Whitening<T>,
     gyro_whitening: Whitening<T>,
@@ -359,6 +361,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         Ok(Self {
             config,
             ekf: Ekf16::new(config.ekf)?,
+            replaced_ekf_refusals: RefusalCounters::default(),
             delay_loop: DefaultDelayLoop::new(config.loop_config())?,
             accel_whitening,
             gyro_whitening,
@@ -458,8 +461,18 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     }
 
     /// The horizon EKF's refusal and gating counters.
+    ///
+    /// Counted over the navigator's whole life: the counters of horizon
+    /// filters it replaced (at [`reset`](Self::reset) and alignment) are
+    /// kept.
     pub fn ekf_refusals(&self) -> RefusalCounters {
-        self.ekf.refusals()
+        self.replaced_ekf_refusals.merged(self.ekf.refusals())
+    }
+
+    /// Puts a new horizon filter in place, keeping the old one's counters.
+    fn replace_ekf(&mut self, ekf: Ekf16<T>) {
+        self.replaced_ekf_refusals = self.ekf_refusals();
+        self.ekf = ekf;
     }
 
     /// Work counters.
@@ -500,7 +513,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.retained_biases = Some((biases, variances));
         }
         if let Ok(ekf) = Ekf16::new(self.config.ekf) {
-            self.ekf = ekf;
+            self.replace_ekf(ekf);
         }
         if let Ok(delay_loop) = DefaultDelayLoop::new(self.config.loop_config()) {
             self.delay_loop = delay_loop;
@@ -575,7 +588,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
             last_reset: self.last_reset,
             refusals: self.refusals,
-            ekf_refusals: self.ekf.refusals(),
+            ekf_refusals: self.ekf_refusals(),
             delay: DelayHealth {
                 estimated,
                 delay_s: self.delay_s(),
@@ -718,7 +731,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             config.origin = Some(frame.origin());
         }
         if let Ok(ekf) = Ekf16::from_state_with_covariance(config, t_us, &x, &p) {
-            self.ekf = ekf;
+            self.replace_ekf(ekf);
         }
     }
 
