@@ -115,24 +115,22 @@ pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
 ) -> Result<FusionRecord<T, M>, Error> {
     // H's non-zero columns: GPS rows select a few states, the magnetometer
     // row only the quaternion. Products with H run over these columns only.
-    let mut support = [0usize; N];
-    let mut width = 0;
-    for c in 0..N {
-        if (0..M).any(|m| h[(m, c)] != T::zero()) {
-            support[width] = c;
-            width += 1;
-        }
+    // A mask over `0..N`, not a list of indices: every index then comes
+    // from a `0..N` loop, so no bounds check on it can fail (a link-time
+    // check proves the push API panic-free: benches/no-panic).
+    let mut support = [false; N];
+    for (c, used) in support.iter_mut().enumerate() {
+        *used = (0..M).any(|m| h[(m, c)] != T::zero());
     }
-    let support = &support[..width];
     // U = P H^T (N x M), from the columns of P in the support.
     let mut pht = SMatrix::<T, N, M>::zeros();
-    for &c in support {
+    for c in columns(&support) {
         for m in 0..M {
             pht.column_mut(m).axpy(h[(m, c)], &p.column(c), T::one());
         }
     }
     let mut s = *r;
-    for &c in support {
+    for c in columns(&support) {
         for m2 in 0..M {
             for m1 in 0..M {
                 s[(m1, m2)] += h[(m1, c)] * pht[(c, m2)];
@@ -166,7 +164,7 @@ pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
         k = c * k;
     }
     let x_new = *x + k * innovation;
-    let p_new = joseph_covariance(p, h, r, &k, &pht, support);
+    let p_new = joseph_covariance(p, h, r, &k, &pht, &support);
     if !(all_finite_fixed(&x_new) && all_finite_fixed(&p_new)) {
         record.test_ratio = T::lit(f64::INFINITY);
         return Ok(record);
@@ -187,7 +185,7 @@ pub fn joseph_update_restricted<T: Scalar, const N: usize, const M: usize>(
 /// P'        = L P + (K R - L P H^T) K^T          (one triangle, mirrored)
 /// ```
 ///
-/// `support` lists the columns of `H` that are not zero. The result is
+/// `support[c]` tells whether column `c` of `H` is not zero. The result is
 /// exactly symmetric.
 fn joseph_covariance<T: Scalar, const N: usize, const M: usize>(
     p: &SMatrix<T, N, N>,
@@ -195,29 +193,35 @@ fn joseph_covariance<T: Scalar, const N: usize, const M: usize>(
     r: &SMatrix<T, M, M>,
     k: &SMatrix<T, N, M>,
     pht: &SMatrix<T, N, M>,
-    support: &[usize],
+    support: &[bool; N],
 ) -> SMatrix<T, N, N> {
     let mut lp = *p;
     lp.gemm(-T::one(), k, &pht.transpose(), T::one());
     // Z = K R - L P H^T.
     let mut z: SMatrix<T, N, M> = k * r;
-    for &c in support {
+    for c in columns(support) {
         for m in 0..M {
             z.column_mut(m).axpy(-h[(m, c)], &lp.column(c), T::one());
         }
     }
-    // In place: each step reads the lower triangle, which no earlier step wrote.
-    for j in 0..N {
-        for i in j..N {
-            let mut v = lp[(i, j)];
+    // The lower triangle in place, column `j` from row `j` down, then
+    // mirrored. Iterators, not run-time indices: after unrolling, the
+    // optimiser could not prove `lp[(i, j)]` in bounds for `j <= i < N`, and
+    // the push API must have no reachable panic (benches/no-panic).
+    for (j, (mut column, k_row)) in lp.column_iter_mut().zip(k.row_iter()).enumerate() {
+        for (entry, z_row) in column.iter_mut().zip(z.row_iter()).skip(j) {
             for m in 0..M {
-                v += z[(i, m)] * k[(j, m)];
+                *entry += z_row[m] * k_row[m];
             }
-            lp[(i, j)] = v;
-            lp[(j, i)] = v;
         }
     }
+    lp.fill_upper_triangle_with_lower_triangle();
     lp
+}
+
+/// The indices `c < N` with `support[c]` set, in increasing order.
+fn columns<const N: usize>(support: &[bool; N]) -> impl Iterator<Item = usize> + '_ {
+    (0..N).filter(|&c| support[c])
 }
 
 #[cfg(test)]

@@ -302,7 +302,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         } else {
             None
         };
-        for lag in 0..self.lags {
+        // `lags <= LAGS` (checked in `new`); the `min` only lets the
+        // compiler drop the bounds checks below (benches/no-panic).
+        for lag in 0..self.lags.min(LAGS) {
             let s = self.shift_min + lag;
             let x = self.x.get(age + s).unwrap_or_else(Vector3::zeros);
             let x_old = if full {
@@ -340,9 +342,14 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             .x_window
             .get(age + self.shift_min + lag)
             .unwrap_or_else(|| (Vector3::zeros(), Vector3::zeros()));
+        // `axis < 3` (the callers) and `lag < lags <= LAGS` (`new`): neither
+        // the reduction nor the fallback changes anything; they only keep
+        // bounds checks that could panic out of the push API (benches/no-panic).
+        let axis = axis % 3;
+        let sxy = self.cross[axis].get(lag).copied().unwrap_or_else(T::zero);
         let r = pearson(
             n,
-            self.cross[axis][lag],
+            sxy,
             sx[axis],
             self.y_sums.sum[axis],
             sxx[axis],

@@ -69,7 +69,9 @@ impl<T: Scalar> GridResampler<T> {
                 }
             }
             Some(_) => return,
-            None => self.next_index = t_us.div_ceil(period_us),
+            // `period_us >= 1` (`validate_grid`: rate <= 1 MHz); `max` only
+            // makes the divisor provably non-zero (benches/no-panic).
+            None => self.next_index = t_us.div_ceil(period_us.max(1)),
         }
         self.previous = Some((t_us, v));
     }
@@ -174,7 +176,10 @@ impl<T: Scalar> ImuToGrid<T> {
             }
             open => {
                 if let Some((b, sum, off, n)) = open.take() {
-                    let mean_t = (b * p) as i64 + (2 * off + n).div_euclid(2 * n);
+                    // round(off / n), half up; n >= 1 in an open bin
+                    // (`max` only makes the divisor provably non-zero).
+                    let n = n.max(1);
+                    let mean_t = (b * p) as i64 + rounded_mean(off, n);
                     let mean = sum / T::lit(n as f64);
                     self.grid.push(mean_t.max(0) as u64, mean, emit);
                 }
@@ -183,6 +188,14 @@ impl<T: Scalar> ImuToGrid<T> {
         }
         Ok(())
     }
+}
+
+/// `round(sum / n)` for `n >= 1`, halves rounded up: `floor((2 sum + n) / 2n)`
+/// computed as `floor((sum + floor(n / 2)) / n)`, the same value (for odd
+/// `n`, `2 sum + n` is odd and `2n` even, so the half dropped from `n / 2`
+/// never crosses a multiple of `n`), with `n` itself as the divisor.
+fn rounded_mean(sum: i64, n: i64) -> i64 {
+    (sum + n / 2).div_euclid(n)
 }
 
 /// Largest timestamp the correlation grid accepts, us (an eighth of `u64`,
@@ -365,6 +378,19 @@ pub(crate) fn admit_sample<T: Scalar>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rounded_mean_is_the_half_up_rounding_of_the_mean() {
+        for n in 1..40i64 {
+            for sum in -500..500i64 {
+                assert_eq!(
+                    rounded_mean(sum, n),
+                    (2 * sum + n).div_euclid(2 * n),
+                    "{sum} / {n}"
+                );
+            }
+        }
+    }
 
     /// The IMU and GPS paths have no relative lag: a ramp acceleration
     /// `a = c t` fed as jittered 50 Hz IMU samples, and the matching velocity

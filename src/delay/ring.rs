@@ -26,8 +26,11 @@ impl<E: Copy, const N: usize> Ring<E, N> {
     /// Appends a value, dropping the oldest one when full.
     #[inline]
     pub(crate) fn push(&mut self, value: E) {
-        self.data[self.head] = value;
-        self.head = (self.head + 1) % N;
+        // `head < N` always; reduced here too so that the index is provably
+        // in bounds (no reachable panic: benches/no-panic).
+        let head = self.head % N;
+        self.data[head] = value;
+        self.head = (head + 1) % N;
         if self.len < N {
             self.len += 1;
         }
