@@ -20,7 +20,9 @@
 //! - every refusal of the call (an `Err`, a GPS block or a magnetometer
 //!   update not fused) raised the sum of the estimator's refusal counters by
 //!   at least one ([`RefusalCounters`]; for the navigator also
-//!   [`NavRefusals`]).
+//!   [`NavRefusals`]);
+//! - a fix answered `GpsOutcome::Waiting` (held until the filter can align)
+//!   moved no counter: waiting is not a refusal.
 //!
 //! A failing case is shrunk by proptest, then by dropping operations one at
 //! a time ([`minimize`]), and printed as `start` and `ops`.
@@ -40,6 +42,10 @@
 //! (`cargo test --all-features --test push_api -- --ignored`).
 //!
 //! `PROPTEST_CASES` raises the case count (default [`DEFAULT_CASES`]).
+//!
+//! The cargo-fuzz target `push_api` (`fuzz/fuzz_targets/push_api.rs`)
+//! includes this file and draws [`case`] from the fuzz input; the items it
+//! uses are `pub(crate)` for that.
 
 use delaynav::ekf16::state::StateVector;
 use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, NavRefusals};
@@ -63,7 +69,7 @@ const GRAVITY: f64 = 9.806_65;
 
 /// Where a sample's time comes from, relative to the newest time pushed.
 #[derive(Debug, Clone, Copy)]
-enum Time {
+pub(crate) enum Time {
     /// `cursor + dt` (saturating).
     After(u64),
     /// The same time again (a duplicate).
@@ -75,13 +81,13 @@ enum Time {
 }
 
 #[derive(Debug, Clone, Copy)]
-enum Position {
+pub(crate) enum Position {
     Ned([f64; 3]),
     Geodetic([f64; 3]),
 }
 
 #[derive(Debug, Clone, Copy)]
-enum Op {
+pub(crate) enum Op {
     Imu {
         t: Time,
         gyro: [f64; 3],
@@ -228,7 +234,7 @@ fn op(full: bool) -> impl Strategy<Value = Op> {
 }
 
 /// An optional calm start, then the operations.
-fn case(full: bool) -> impl Strategy<Value = (Option<u32>, Vec<Op>)> {
+pub(crate) fn case(full: bool) -> impl Strategy<Value = (Option<u32>, Vec<Op>)> {
     (
         prop::option::weighted(0.8, 300u32..=2_000),
         prop::collection::vec(op(full), 0..60),
@@ -236,7 +242,7 @@ fn case(full: bool) -> impl Strategy<Value = (Option<u32>, Vec<Op>)> {
 }
 
 /// What the checks need from an estimator.
-trait Subject<T: Scalar>: Navigator<T> {
+pub(crate) trait Subject<T: Scalar>: Navigator<T> {
     /// Sums of the refusal counters: the estimator's own and its (horizon)
     /// EKF's; for the EKFs the first is 0.
     fn refusal_sums(&self) -> (u64, u64);
@@ -410,7 +416,7 @@ fn check_state<T: Scalar, S: Subject<T>>(s: &S, what: &str) -> Result<(), TestCa
 }
 
 /// Drives one estimator through one case.
-struct Driver<T: Scalar, S: Subject<T>> {
+pub(crate) struct Driver<T: Scalar, S: Subject<T>> {
     s: S,
     cursor: u64,
     /// Calls so far (for the messages).
@@ -458,8 +464,23 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
         self.call("imu", |s| refusals_of(&s.push_imu(&imu), |_| 0))
     }
 
+    /// A fix answered `GpsOutcome::Waiting` (held until the filter can
+    /// align) is not a refusal: no counter may move.
     fn gps(&mut self, fix: Gps<T>) -> Result<(), TestCaseError> {
-        self.call("gps", |s| refusals_of(&s.push_gps(&fix), gps_gated))
+        let before = self.s.refusal_sums();
+        let mut waiting = false;
+        self.call("gps", |s| {
+            let result = s.push_gps(&fix);
+            waiting = matches!(result, Ok(GpsOutcome::Waiting));
+            refusals_of(&result, gps_gated)
+        })?;
+        let after = self.s.refusal_sums();
+        prop_assert!(
+            !waiting || after == before,
+            "call {}: a fix answered Waiting moved the refusal counters {before:?} -> {after:?}",
+            self.calls
+        );
+        Ok(())
     }
 
     fn mag(&mut self, t_us: u64, field: [f64; 3]) -> Result<(), TestCaseError> {
@@ -622,7 +643,7 @@ fn minimize<T: Scalar, S: Subject<T>>(
 }
 
 /// One case: the calm start, then the operations, checked after every call.
-fn replay<T: Scalar, S: Subject<T>>(
+pub(crate) fn replay<T: Scalar, S: Subject<T>>(
     s: S,
     start: Option<u32>,
     ops: &[Op],
@@ -653,7 +674,7 @@ fn nav<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNav<T> {
 
 macro_rules! machines {
     ($($name:ident: $t:ty,)*) => {$(
-        mod $name {
+        pub(crate) mod $name {
             use super::*;
 
             pub fn nav_estimated() -> DelayCompensatedNav<$t> {
@@ -724,20 +745,45 @@ machines! {
 /// Every estimator of both precisions through `ops` after a 1 s calm
 /// start; the failures, one line each.
 fn all_estimators(ops: &[Op]) -> Vec<String> {
-    fn run<T: Scalar, S: Subject<T>>(name: &str, s: S, ops: &[Op], out: &mut Vec<String>) {
-        if let Err(e) = replay(s, Some(1_000), ops) {
+    every_estimator(Some(1_000), ops)
+}
+
+/// Every estimator of both precisions through one case (`start`, `ops`);
+/// the failures, one line each. Also the fuzz target's body
+/// (`fuzz/fuzz_targets/push_api.rs`, which includes this file).
+pub(crate) fn every_estimator(start: Option<u32>, ops: &[Op]) -> Vec<String> {
+    fn run<T: Scalar, S: Subject<T>>(
+        name: &str,
+        s: S,
+        start: Option<u32>,
+        ops: &[Op],
+        out: &mut Vec<String>,
+    ) {
+        if let Err(e) = replay(s, start, ops) {
             out.push(format!("{name}: {e}"));
         }
     }
     let mut out = Vec::new();
-    run("f32 nav estimated", f32_::nav_estimated(), ops, &mut out);
-    run("f32 nav fixed", f32_::nav_fixed(), ops, &mut out);
-    run("f32 ekf16", f32_::ekf16(), ops, &mut out);
-    run("f32 aekf17", f32_::aekf17(), ops, &mut out);
-    run("f64 nav estimated", f64_::nav_estimated(), ops, &mut out);
-    run("f64 nav fixed", f64_::nav_fixed(), ops, &mut out);
-    run("f64 ekf16", f64_::ekf16(), ops, &mut out);
-    run("f64 aekf17", f64_::aekf17(), ops, &mut out);
+    run(
+        "f32 nav estimated",
+        f32_::nav_estimated(),
+        start,
+        ops,
+        &mut out,
+    );
+    run("f32 nav fixed", f32_::nav_fixed(), start, ops, &mut out);
+    run("f32 ekf16", f32_::ekf16(), start, ops, &mut out);
+    run("f32 aekf17", f32_::aekf17(), start, ops, &mut out);
+    run(
+        "f64 nav estimated",
+        f64_::nav_estimated(),
+        start,
+        ops,
+        &mut out,
+    );
+    run("f64 nav fixed", f64_::nav_fixed(), start, ops, &mut out);
+    run("f64 ekf16", f64_::ekf16(), start, ops, &mut out);
+    run("f64 aekf17", f64_::aekf17(), start, ops, &mut out);
     out
 }
 

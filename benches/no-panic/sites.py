@@ -23,7 +23,12 @@ dis = subprocess.run([objdump, "-d", "-C", "--no-show-raw-insn", elf],
 
 func_re = re.compile(r"^([0-9a-f]+) <(.*)>:$")
 call_re = re.compile(r"^\s*([0-9a-f]+):\s+(b|bl|blx|b\w\w|b\.w|bl\.w|b\w\w\.w)\s+0x[0-9a-f]+ <(.*)>")
+# Any branch to a local address (conditional ones included), by target.
+jump_re = re.compile(r"^\s*([0-9a-f]+):\s+(b\w*|cbn?z)\s+(?:\w+,\s*)?0x([0-9a-f]+) <")
+insn_re = re.compile(r"^\s*([0-9a-f]+):\s+(\S+)")
 calls = collections.defaultdict(list)  # caller -> [(addr, callee)]
+jumps_to = collections.defaultdict(list)  # target -> [branch addresses]
+insns = []  # (addr, mnemonic) in address order
 current = None
 for line in dis.splitlines():
     m = func_re.match(line)
@@ -31,9 +36,16 @@ for line in dis.splitlines():
         if not m.group(2).startswith("$"):  # not an ARM mapping symbol ($t, $d)
             current = m.group(2)
         continue
+    m = insn_re.match(line)
+    if m:
+        insns.append((int(m.group(1), 16), m.group(2)))
+    m = jump_re.match(line)
+    if m:
+        jumps_to[int(m.group(3), 16)].append(int(m.group(1), 16))
     m = call_re.match(line)
     if m and current and "+0x" not in m.group(3):
         calls[current].append((int(m.group(1), 16), m.group(3)))
+insn_index = {addr: i for i, (addr, _) in enumerate(insns)}
 
 # Every panic enters core::panicking (panic_fmt and friends; LTO may have
 # inlined the handler, rust_begin_unwind, into them).
@@ -85,21 +97,41 @@ def strip_hash(name):
     return re.sub(r"(^|::)_(<|\{)", r"\1\2", name)
 
 
+def feeders(addr):
+    """Branches into the straight run of instructions that ends with the
+    panic call at `addr`. LTO merges the panic calls of a function into one
+    cold block, whose own line is that of unrelated code; the branches into
+    it carry the lines of the checks that fail."""
+    found = []
+    i = insn_index.get(addr)
+    steps = 0
+    while i is not None and i >= 0 and steps < 8:
+        start, mnemonic = insns[i]
+        if start != addr and (mnemonic in ("b", "b.w", "bx", "pop", "pop.w")
+                              or mnemonic.startswith("bl")):
+            break  # the run into the call starts after this instruction
+        found += jumps_to.get(start, [])
+        i -= 1
+        steps += 1
+    return found
+
+
 by_line = collections.defaultdict(set)
-for addr, caller, callee in sites:
-    frames = chain(addr)
-    found = ours(frames)
-    # Compiler-made code at the call may carry line 0: take the nearest
-    # instruction before it that has a line in delaynav.
-    back = 2
-    while found is None and back <= 64:
-        found = ours(chain(addr - back))
-        back += 2
-    inner = frames[0][1] if frames else "?"
-    inner = re.sub(r"^.*/(rustlib/src/rust/library|registry/src/[^/]+|library)/", "", inner)
-    panic = strip_hash(callee).split("::")[-1]
-    key = (found[1], strip_hash(found[0])) if found else ("(no delaynav line)", strip_hash(caller))
-    by_line[key].add((panic, inner))
+for call_addr, caller, callee in sites:
+    for addr in feeders(call_addr) or [call_addr]:
+        frames = chain(addr)
+        found = ours(frames)
+        # Compiler-made code at the call may carry line 0: take the nearest
+        # instruction before it that has a line in delaynav.
+        back = 2
+        while found is None and back <= 64:
+            found = ours(chain(addr - back))
+            back += 2
+        inner = frames[0][1] if frames else "?"
+        inner = re.sub(r"^.*/(rustlib/src/rust/library|registry/src/[^/]+|library)/", "", inner)
+        panic = strip_hash(callee).split("::")[-1]
+        key = (found[1], strip_hash(found[0])) if found else ("(no delaynav line)", strip_hash(caller))
+        by_line[key].add((panic, inner))
 
 print(f"{len(by_line)} panic site(s) reachable from the push API ({len(sites)} call instructions):")
 for (loc, fn), details in sorted(by_line.items()):

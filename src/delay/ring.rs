@@ -46,7 +46,7 @@ impl<E: Copy, const N: usize> Ring<E, N> {
     #[inline]
     pub(crate) fn get(&self, age: usize) -> Option<E> {
         if age < self.len {
-            Some(self.data[(self.head + N - 1 - age) % N])
+            Some(self.data[self.back(age + 1)])
         } else {
             None
         }
@@ -58,7 +58,7 @@ impl<E: Copy, const N: usize> Ring<E, N> {
         if self.len == 0 {
             return None;
         }
-        let oldest = self.data[(self.head + N - self.len) % N];
+        let oldest = self.data[self.back(self.len)];
         self.len -= 1;
         Some(oldest)
     }
@@ -67,6 +67,15 @@ impl<E: Copy, const N: usize> Ring<E, N> {
     #[inline]
     pub(crate) fn oldest(&self) -> Option<E> {
         self.len.checked_sub(1).and_then(|age| self.get(age))
+    }
+
+    /// Index of the value written `steps` pushes before the next one
+    /// (`1 <= steps <= len`). `head < N` and `steps <= N`, so `head + N - steps`
+    /// neither overflows nor underflows: the wrapping operations only spare
+    /// a debug build overflow checks that cannot fail (benches/no-panic).
+    #[inline]
+    fn back(&self, steps: usize) -> usize {
+        self.head.wrapping_add(N).wrapping_sub(steps) % N
     }
 
     /// Forgets every value.
