@@ -24,6 +24,7 @@ use fusion_nav::prelude as fnav;
 use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector3};
 
 /// `fusion_nav::Eskf` fed like a delaynav estimator.
+#[derive(Clone)]
 pub struct FusionNav {
     filter: fnav::Eskf,
     window: fnav::StaticWindow,
