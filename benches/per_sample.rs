@@ -36,7 +36,9 @@
 mod fusion_nav;
 
 use criterion::measurement::WallTime;
-use criterion::{BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{
+    BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
+};
 use delaynav::estimate::{Estimate, GpsOutcome, MagOutcome};
 use delaynav::sim::{STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, Truth};
 use delaynav::{
@@ -292,7 +294,10 @@ fn bench_estimator<T: Scalar, N: Navigator<T> + Clone>(
     end: &Truth,
 ) {
     feed(&mut nav, &samples.warm_up);
-    assert!(nav.estimate().is_some(), "{id}: no estimate after the run-in");
+    assert!(
+        nav.estimate().is_some(),
+        "{id}: no estimate after the run-in"
+    );
     let mut check = nav.clone();
     let refused = feed(&mut check, &samples.stretch);
     let estimate = check.estimate().expect("an estimate after the stretch");
