@@ -29,13 +29,18 @@
 //!   `measurement * orientation`, which is not small when both agree. No
 //!   alignment either: it starts from the true state at t = 0.
 //!
+//! Time is the thread's CPU time ([`ThreadCpuTime`]), so a loaded machine
+//! does not count its other processes' turns. Criterion prints the time of
+//! one stretch and, as `thrpt`, the time per IMU sample (`µs/elem`).
+//!
 //! `cargo bench --features sim --bench per_sample`; comparing two commits
 //! (`--save-baseline` / `--baseline`): docs/PERFORMANCE.md.
 
 #[path = "../examples/reproduce/fusion_nav.rs"]
 mod fusion_nav;
 
-use criterion::measurement::WallTime;
+use cpu_time::ThreadTime;
+use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{
     BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
 };
@@ -287,7 +292,7 @@ impl<T: Scalar> Navigator<T> for EskfPeer {
 /// sample accepted, a finite estimate; its position error is printed), then
 /// times the stretch on a fresh copy of the run-in state per iteration.
 fn bench_estimator<T: Scalar, N: Navigator<T> + Clone>(
-    group: &mut BenchmarkGroup<'_, WallTime>,
+    group: &mut BenchmarkGroup<'_, ThreadCpuTime>,
     id: &str,
     mut nav: N,
     samples: &Samples<T>,
@@ -317,7 +322,7 @@ fn bench_estimator<T: Scalar, N: Navigator<T> + Clone>(
 }
 
 fn ours<T: Scalar>(
-    group: &mut BenchmarkGroup<'_, WallTime>,
+    group: &mut BenchmarkGroup<'_, ThreadCpuTime>,
     precision: &str,
     sim: &SimConfig,
     samples: &Samples<T>,
@@ -336,7 +341,7 @@ fn ours<T: Scalar>(
     bench_estimator(group, &format!("aekf17_{precision}"), aekf, samples, end);
 }
 
-fn per_sample(c: &mut Criterion) {
+fn per_sample(c: &mut Criterion<ThreadCpuTime>) {
     let sim = SimConfig {
         duration_s: WARM_UP_S + STRETCH_S,
         ..SimConfig::for_scenario(Scenario::High, SEED)
@@ -364,11 +369,95 @@ fn per_sample(c: &mut Criterion) {
     group.finish();
 }
 
+/// CPU time of the benchmark's thread: unlike wall time it does not count
+/// the time the thread waits while other processes run, so a loaded machine
+/// slows a figure only through shared caches and clocks.
+struct ThreadCpuTime;
+
+impl Measurement for ThreadCpuTime {
+    type Intermediate = ThreadTime;
+    type Value = Duration;
+
+    fn start(&self) -> ThreadTime {
+        ThreadTime::now()
+    }
+
+    fn end(&self, start: ThreadTime) -> Duration {
+        start.elapsed()
+    }
+
+    fn add(&self, a: &Duration, b: &Duration) -> Duration {
+        *a + *b
+    }
+
+    fn zero(&self) -> Duration {
+        Duration::ZERO
+    }
+
+    fn to_f64(&self, value: &Duration) -> f64 {
+        value.as_nanos() as f64
+    }
+
+    fn formatter(&self) -> &dyn ValueFormatter {
+        &Nanoseconds
+    }
+}
+
+/// Nanoseconds shown in a unit that suits the typical value; a throughput
+/// is shown as time per element (per IMU sample: the only throughput this
+/// bench sets).
+struct Nanoseconds;
+
+impl Nanoseconds {
+    fn unit(typical_ns: f64) -> (f64, &'static str) {
+        match typical_ns {
+            t if t < 1e3 => (1.0, "ns"),
+            t if t < 1e6 => (1e-3, "µs"),
+            t if t < 1e9 => (1e-6, "ms"),
+            _ => (1e-9, "s"),
+        }
+    }
+}
+
+impl ValueFormatter for Nanoseconds {
+    fn scale_values(&self, typical_ns: f64, values: &mut [f64]) -> &'static str {
+        let (factor, unit) = Self::unit(typical_ns);
+        values.iter_mut().for_each(|v| *v *= factor);
+        unit
+    }
+
+    fn scale_throughputs(
+        &self,
+        typical_ns: f64,
+        throughput: &Throughput,
+        values: &mut [f64],
+    ) -> &'static str {
+        let per = match *throughput {
+            Throughput::Elements(n) | Throughput::ElementsAndBytes { elements: n, .. } => n,
+            Throughput::Bytes(n) | Throughput::BytesDecimal(n) | Throughput::Bits(n) => n,
+        }
+        .max(1) as f64;
+        let (factor, unit) = Self::unit(typical_ns / per);
+        values.iter_mut().for_each(|v| *v *= factor / per);
+        match unit {
+            "ns" => "ns/elem",
+            "µs" => "µs/elem",
+            "ms" => "ms/elem",
+            _ => "s/elem",
+        }
+    }
+
+    fn scale_for_machines(&self, _: &mut [f64]) -> &'static str {
+        "ns"
+    }
+}
+
 criterion_group! {
     name = benches;
-    // A stretch takes milliseconds: 10 samples over 4 s keep the whole run
-    // near a minute and a half while the medians settle to about 1 %.
+    // A stretch takes 4-8 ms of CPU: 10 samples over 4 s of CPU time each
+    // keep the whole run to a few minutes (docs/PERFORMANCE.md).
     config = Criterion::default()
+        .with_measurement(ThreadCpuTime)
         .sample_size(10)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(4));
