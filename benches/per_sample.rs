@@ -288,8 +288,8 @@ impl<T: Scalar> Navigator<T> for EskfPeer {
     }
 }
 
-/// Runs `nav` through the run-in, checks it on one untimed stretch (every
-/// sample accepted, a finite estimate; its position error is printed), then
+/// Runs `nav` through the run-in, checks it on one untimed stretch (a finite
+/// estimate; refused samples and the position error are printed), then
 /// times the stretch on a fresh copy of the run-in state per iteration.
 fn bench_estimator<T: Scalar, N: Navigator<T> + Clone>(
     group: &mut BenchmarkGroup<'_, ThreadCpuTime>,
