@@ -15,7 +15,8 @@
 //!   whole log when there is no flight window), used when it lasts at least
 //!   [`MIN_STATIONARY_US`]. In a segment, each axis's white-noise density is
 //!   `σ √Δt` with `σ` the standard deviation of sample-to-sample differences
-//!   divided by `√2` and `Δt` the mean sample interval. The same measure over
+//!   divided by `√2` and `Δt` the median sample interval (a dropped sample
+//!   leaves a difference of two white samples, variance still `2σ²`). The same measure over
 //!   the flight window gives the in-flight noise (vibration included).
 //! - **Date and place**: the first 3-D fix's position, and the date from the
 //!   GPS time in the log ([`log_date`]).
@@ -103,10 +104,9 @@ impl NoiseSource {
 #[derive(Debug, Clone, Copy, Default)]
 struct Block {
     samples: u64,
-    /// Sample-to-sample differences: count, sum of steps (µs), sums and
-    /// squared sums per axis (gyro x, y, z, accel x, y, z).
+    /// Sample-to-sample differences: count, sums and squared sums per axis
+    /// (gyro x, y, z, accel x, y, z).
     diffs: u64,
-    step_us: u64,
     diff_sum: [f64; 6],
     diff_squares: [f64; 6],
     gyro_norm: f64,
@@ -130,20 +130,19 @@ impl Block {
     fn add(&mut self, other: &Block) {
         self.samples += other.samples;
         self.diffs += other.diffs;
-        self.step_us += other.step_us;
         for i in 0..6 {
             self.diff_sum[i] += other.diff_sum[i];
             self.diff_squares[i] += other.diff_squares[i];
         }
     }
 
-    /// Densities per axis of the differences summed here.
-    fn densities(&self) -> Option<([f64; 3], [f64; 3])> {
+    /// Densities per axis of the differences summed here, for samples
+    /// `dt_s` apart.
+    fn densities(&self, dt_s: f64) -> Option<([f64; 3], [f64; 3])> {
         if self.diffs < 2 {
             return None;
         }
         let n = self.diffs as f64;
-        let dt_s = self.step_us as f64 / n * 1e-6;
         let density = |i: usize| {
             let mean = self.diff_sum[i] / n;
             let variance = (self.diff_squares[i] / n - mean * mean).max(0.0);
@@ -251,7 +250,6 @@ impl LogDefaults {
                         && s.t_us - t <= MAX_NOISE_STEP_US
                     {
                         block.diffs += 1;
-                        block.step_us += s.t_us - t;
                         for i in 0..6 {
                             let d = values[i] - last[i];
                             block.diff_sum[i] += d;
@@ -280,14 +278,18 @@ impl LogDefaults {
         let start = first_imu_us.unwrap_or(0);
         let block_start = |i: u64| start + i * BLOCK_US;
         let [h, v, s] = accuracies.map(|mut a| median(&mut a));
+        let imu_rate_hz = imu_steps.median_rate_hz();
+        let dt_s = imu_rate_hz.map_or(0.0, |f| 1.0 / f);
+        let measurement = |blocks: &[&(u64, Block)]| measurement(blocks, dt_s, &block_start);
         Self {
-            imu_rate_hz: imu_steps.median_rate_hz(),
+            imu_rate_hz,
             gps_rate_hz: gps_steps.median_rate_hz(),
             mag_rate_hz: mag_steps.median_rate_hz(),
             gps_horizontal_accuracy_m: h,
             gps_vertical_accuracy_m: v,
             gps_speed_accuracy_m_s: s,
-            stationary: stationary_segment(&blocks, window.map(|w| w.from_us), &block_start),
+            stationary: stationary_segment(&blocks, window.map(|w| w.from_us), &block_start)
+                .and_then(|run| measurement(&run)),
             in_flight: window.and_then(|w| {
                 let inside: Vec<_> = blocks
                     .iter()
@@ -295,7 +297,7 @@ impl LogDefaults {
                         block_start(*i) >= w.from_us && block_start(*i) + BLOCK_US <= w.to_us
                     })
                     .collect();
-                measurement(&inside, &block_start)
+                measurement(&inside)
             }),
             first_fix,
         }
@@ -345,12 +347,13 @@ impl LogDefaults {
     }
 }
 
-/// The longest run of consecutive still blocks ending before `before_us`.
-fn stationary_segment(
-    blocks: &[(u64, Block)],
+/// The longest run of consecutive still blocks ending before `before_us`,
+/// if it lasts [`MIN_STATIONARY_US`].
+fn stationary_segment<'b>(
+    blocks: &'b [(u64, Block)],
     before_us: Option<u64>,
     block_start: &dyn Fn(u64) -> u64,
-) -> Option<NoiseMeasurement> {
+) -> Option<Vec<&'b (u64, Block)>> {
     let eligible = |(i, b): &(u64, Block)| {
         b.still() && before_us.is_none_or(|t| block_start(*i) + BLOCK_US <= t)
     };
@@ -372,14 +375,13 @@ fn stationary_segment(
             k + 1
         };
     }
-    if (best.len() as u64) * BLOCK_US < MIN_STATIONARY_US {
-        return None;
-    }
-    measurement(&best.iter().collect::<Vec<_>>(), block_start)
+    ((best.len() as u64) * BLOCK_US >= MIN_STATIONARY_US).then(|| best.iter().collect())
 }
 
+/// The noise over `blocks`, for samples `dt_s` apart (the median interval).
 fn measurement(
     blocks: &[&(u64, Block)],
+    dt_s: f64,
     block_start: &dyn Fn(u64) -> u64,
 ) -> Option<NoiseMeasurement> {
     let (first, last) = (blocks.first()?.0, blocks.last()?.0);
@@ -387,7 +389,7 @@ fn measurement(
     for (_, b) in blocks {
         sum.add(b);
     }
-    let (accel_density, gyro_density) = sum.densities()?;
+    let (accel_density, gyro_density) = sum.densities(dt_s)?;
     Some(NoiseMeasurement {
         from_us: block_start(first),
         to_us: block_start(last) + BLOCK_US,
