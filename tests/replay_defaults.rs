@@ -3,7 +3,7 @@
 //! `../shared` is there (skipped with a note otherwise).
 #![cfg(feature = "replay")]
 
-use delaynav::replay::defaults::{BLOCK_US, MIN_STATIONARY_US, time::Date};
+use delaynav::replay::defaults::{BLOCK_US, time::Date};
 use delaynav::replay::{
     FlightWindow, ImuNoise, LogDefaults, LogFiles, LogReader, NoiseSource, ReaderOptions,
     SensorEvent, flight_window, log_date, magnetic_model,
@@ -201,7 +201,6 @@ fn a_log_moving_from_the_start_has_no_stationary_segment() {
         .collect();
     let d = LogDefaults::measure(moving, None);
     assert!(d.stationary.is_none(), "{:?}", d.stationary);
-    assert!(MIN_STATIONARY_US >= BLOCK_US);
 }
 
 #[test]
