@@ -223,6 +223,22 @@ fn the_magnetic_model_uses_the_nearest_covered_date_outside_its_range() {
     let clamped = magnetic_model(&canberra, old).unwrap();
     assert!(clamped.date_clamped);
     assert!(clamped.model_date > old);
+    // What clamping costs: the model's own change over its ten years here.
+    let first = magnetic_model(&canberra, clamped.model_date).unwrap();
+    let last =
+        Date::from_calendar_date(2029, delaynav::replay::defaults::time::Month::December, 31)
+            .unwrap();
+    let last = magnetic_model(&canberra, last).unwrap();
+    let drift = (last.declination_rad - first.declination_rad).to_degrees();
+    println!(
+        "Canberra declination: {:.2} deg at {}, {:.2} deg at {} ({drift:+.2} deg), 1-sigma {:.2} deg",
+        first.declination_rad.to_degrees(),
+        first.model_date,
+        last.declination_rad.to_degrees(),
+        last.model_date,
+        first.declination_std_rad.to_degrees()
+    );
+    assert!(drift.abs() < 1.0, "{drift}");
     // Latitude out of the model: no field.
     let nowhere = Geodetic {
         lat_deg: 95.0,
