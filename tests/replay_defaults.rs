@@ -278,6 +278,14 @@ fn log171_defaults_are_measured_and_equal_across_layouts() {
     found[1].1.first_fix = Some(fix(0));
     assert_eq!(found[0], found[1], ".bin and CSV disagree");
     let (window, d, date) = &found[0];
+    // README: flight from about 75-85 s, impact at about 230-245 s; the
+    // window ends 2 s before it.
+    assert!(
+        (80_000_000..90_000_000).contains(&window.from_us),
+        "{window:?}"
+    );
+    let impact = window.impact_us.expect("log171 ends in a crash");
+    assert_eq!(window.to_us, impact - 2_000_000);
     // README: IMU 49-50 Hz, GPS 4.9-5 Hz, magnetometer 9.8-10 Hz.
     assert!((d.imu_rate_hz.unwrap() - 50.0).abs() < 1.0, "{d:?}");
     assert!((d.gps_rate_hz.unwrap() - 5.0).abs() < 0.2, "{d:?}");
