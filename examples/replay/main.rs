@@ -151,7 +151,14 @@ const ESTIMATORS: &[Registered] = &[
             let config = Aekf17Config::with_nav(setup.ekf16_config());
             let mut nav = AugmentedEkf17::new(config)?;
             let summary = run_one(setup, out, "aekf17", &mut nav)?;
-            let health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            health.initialized(nav.estimate().is_some());
+            health.delay_status = Some(format!(
+                "state estimate {:.3} s +- {:.3} s, clamped to its range {} times",
+                nav.delay_s(),
+                nav.delay_std_s(),
+                nav.delay_clamps()
+            ));
             Ok((summary, health))
         },
     },
@@ -161,7 +168,8 @@ const ESTIMATORS: &[Registered] = &[
         run: |setup, out| {
             let mut nav = Ekf16::new(setup.ekf16_config())?;
             let summary = run_one(setup, out, "ekf16", &mut nav)?;
-            let health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            health.initialized(nav.estimate().is_some());
             Ok((summary, health))
         },
     },
@@ -216,7 +224,7 @@ impl Setup {
 /// What an estimator reports about itself at the end of a replay.
 #[derive(Debug, Default)]
 struct HealthSummary {
-    /// Alignment state (the navigator reports one).
+    /// Alignment state (the navigator's; the filters: initialized or not).
     alignment: Option<String>,
     /// Samples refused, `sensor_reason` and count (non-zero only).
     refused: Vec<(String, u64)>,
@@ -262,6 +270,12 @@ impl HealthSummary {
             }),
             ..Self::default()
         }
+    }
+
+    /// The alignment of a filter without an alignment state: initialized
+    /// (it gives an estimate) or not.
+    fn initialized(&mut self, yes: bool) {
+        self.alignment = Some(if yes { "Initialized" } else { "NotInitialized" }.to_string());
     }
 
     /// The navigator's [`Health`]: its own refusals, its horizon filter's
