@@ -23,6 +23,7 @@ use crate::scalar::Scalar;
 /// Configuration of [`AugmentedEkf17`](super::AugmentedEkf17).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct Aekf17Config<T: Scalar> {
     /// The navigation filter shared with [`Ekf16`](crate::Ekf16).
     pub nav: Ekf16Config<T>,

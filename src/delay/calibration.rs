@@ -48,6 +48,7 @@ use crate::sensors::{GpsFix, ImuSample, checked_gps, checked_imu};
 /// Configuration of the offline calibration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct CalibrationConfig<T: Scalar> {
     /// Rate of the correlation grid, Hz.
     pub correlation_rate_hz: T,

@@ -36,6 +36,7 @@ pub const AXES: usize = 3;
 /// Configuration of the gain fusion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct GainFusionConfig<T: Scalar> {
     /// Gain weight `gamma` (1/3: the three axes weigh the same).
     pub gamma: T,

@@ -101,8 +101,9 @@ use grid::{
 };
 
 /// Per-sensor pure delays of eq. (15), seconds.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct SensorDelays<T: Scalar> {
     /// Delay applied to the whitened accelerometer: `tau_f`.
     pub accel_s: T,
@@ -149,6 +150,7 @@ impl<T: Scalar> SensorDelays<T> {
 /// [`reference_accel_variance_m2_s4`](Self::reference_accel_variance_m2_s4)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct DelayLoopConfig<T: Scalar> {
     /// Rate of the correlation grid, Hz (its period is rounded to whole
     /// microseconds).

@@ -61,6 +61,7 @@ pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
 /// Everything the 16-state EKF needs to know that is not a sensor sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct Ekf16Config<T: Scalar> {
     /// Gravity magnitude, m/s^2 (NED: `[0, 0, +g]`).
     pub gravity_m_s2: T,

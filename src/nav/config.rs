@@ -23,6 +23,7 @@ pub const NAV_MIN_PEAK: f64 = 0.9;
 /// How the GPS delay is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub enum DelayMode<T: Scalar> {
     /// Estimated online by the delay loop (the paper's method), starting from
     /// `initial_s` (e.g. the offline calibration, sec. 2.2.2).
@@ -40,6 +41,7 @@ pub enum DelayMode<T: Scalar> {
 /// The noise-whitening filter of one IMU sensor (sec. 2.2.4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub enum WhiteningFilter<T: Scalar> {
     /// No filtering: one unit tap, zero group delay.
     PassThrough,
@@ -67,8 +69,17 @@ impl<T: Scalar> WhiteningFilter<T> {
 /// loop's validity thresholds ([`NAV_MIN_ACCEL_VARIANCE_M2_S4`],
 /// [`NAV_MIN_PEAK`]), delay estimated from 0.2 s, 1 kHz IMU, no whitening (see the module docs for
 /// why), and a horizon that catches up at most twice as fast as real time.
+///
+/// With the `serde` feature every config struct reads from a partial file
+/// (missing fields take their defaults) and refuses unknown fields by name.
+/// A nested table that is present starts from its own type's defaults: a
+/// `[delay_loop]` table gets [`DelayLoopConfig::default`]'s validity
+/// thresholds, not the navigator's [`NAV_MIN_ACCEL_VARIANCE_M2_S4`] and
+/// [`NAV_MIN_PEAK`]; set them in the table if you need them (the replay
+/// example merges a file over its own resolved config instead).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct NavConfig<T: Scalar> {
     /// The 16-state EKF run at the delayed horizon.
     pub ekf: Ekf16Config<T>,
