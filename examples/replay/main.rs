@@ -13,6 +13,7 @@
 //! differences from the reference, refused samples, skipped rows by kind),
 //! and SVG plots (`--plots DIR`). See `docs/replay.md`.
 
+mod config_file;
 mod plots;
 
 use clap::Parser;
@@ -106,6 +107,13 @@ struct Args {
     /// Accelerometer bias random walk, m/s^2/sqrt(s) (default: the filters').
     #[arg(long)]
     accel_bias_random_walk: Option<f64>,
+    /// Navigator configuration (TOML, may be partial), merged over the one
+    /// derived from the log; its `ekf` table configures every estimator.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Write the resolved configuration as TOML to stdout and exit.
+    #[arg(long)]
+    print_config: bool,
 }
 
 /// One estimator the replay can run. Adding one is one entry here.
@@ -120,16 +128,11 @@ const ESTIMATORS: &[Registered] = &[
         name: "proposed",
         about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
         run: |setup, out| {
-            let config = NavConfig {
-                ekf: setup.ekf16_config(),
-                imu_rate_hz: setup.imu_rate_hz,
-                ..NavConfig::default()
-            };
             run_one(
                 setup,
                 out,
                 "proposed",
-                &mut DelayCompensatedNav::<f64>::new(config)?,
+                &mut DelayCompensatedNav::<f64>::new(setup.nav)?,
             )
         },
     },
@@ -162,6 +165,8 @@ struct Setup {
     imu_rate_hz: f64,
     /// The filters' IMU noise model for this log.
     imu_noise: ImuNoise,
+    /// The navigator's configuration: the log's, with `--config` merged over it.
+    nav: NavConfig<f64>,
 }
 
 /// The filters' IMU noise model (continuous-time densities, see `Ekf16Config`).
@@ -173,17 +178,43 @@ struct ImuNoise {
 }
 
 impl Setup {
-    /// The navigation filter's configuration for this log: defaults with
-    /// the log's magnetic field. Every estimator builds on it.
+    /// The navigation filter's configuration: every estimator builds on it.
     fn ekf16_config(&self) -> Ekf16Config<f64> {
-        Ekf16Config {
-            mag_inclination_rad: self.inclination_rad,
-            mag_declination_rad: self.declination_rad,
-            accel_noise_density: self.imu_noise.accel_noise_density,
-            gyro_noise_density: self.imu_noise.gyro_noise_density,
-            accel_bias_random_walk: self.imu_noise.accel_bias_random_walk,
-            ..Ekf16Config::default()
+        self.nav.ekf
+    }
+
+    /// The navigator's configuration for this log: defaults with the log's
+    /// IMU rate, IMU noise and magnetic field.
+    fn log_config(&self) -> NavConfig<f64> {
+        NavConfig {
+            ekf: Ekf16Config {
+                mag_inclination_rad: self.inclination_rad,
+                mag_declination_rad: self.declination_rad,
+                accel_noise_density: self.imu_noise.accel_noise_density,
+                gyro_noise_density: self.imu_noise.gyro_noise_density,
+                accel_bias_random_walk: self.imu_noise.accel_bias_random_walk,
+                ..Ekf16Config::default()
+            },
+            imu_rate_hz: self.imu_rate_hz,
+            ..NavConfig::default()
         }
+    }
+
+    /// Merges the `--config` file over [`Self::log_config`] and makes the
+    /// figures reported beside the results follow it.
+    fn with_config_file(mut self, path: Option<&std::path::Path>) -> Result<Self, Failure> {
+        self.nav = config_file::resolve(self.log_config(), path)?;
+        let ekf = self.nav.ekf;
+        self.imu_rate_hz = self.nav.imu_rate_hz;
+        self.declination_rad = ekf.mag_declination_rad;
+        self.inclination_rad = ekf.mag_inclination_rad;
+        self.run.estimator_declination_rad = ekf.mag_declination_rad;
+        self.imu_noise = ImuNoise {
+            accel_noise_density: ekf.accel_noise_density,
+            gyro_noise_density: ekf.gyro_noise_density,
+            accel_bias_random_walk: ekf.accel_bias_random_walk,
+        };
+        Ok(self)
     }
 }
 
@@ -374,7 +405,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         estimator_declination_rad: alignment.declination_rad,
         ..RunOptions::default()
     };
-    Ok(Setup {
+    Setup {
         files,
         reader,
         run,
@@ -382,7 +413,9 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         inclination_rad,
         imu_rate_hz,
         imu_noise,
-    })
+        nav: NavConfig::default(),
+    }
+    .with_config_file(args.config.as_deref())
 }
 
 fn chosen(name: &str) -> Result<Vec<&'static Registered>, Failure> {
@@ -502,6 +535,10 @@ fn run(mut args: Args) -> Result<(), Failure> {
     }
     let estimators = chosen(&args.estimator)?;
     let setup = setup(&args)?;
+    if args.print_config {
+        print!("{}", config_file::to_toml(&setup.nav)?);
+        return Ok(());
+    }
     let mut outputs = Outputs {
         estimates: match &args.out {
             Some(p) => Some(EstimateWriter::new(BufWriter::new(File::create(p)?))?),
