@@ -253,9 +253,23 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
         speed_accuracy_m_s: gps.speed_accuracy_m_s(),
     };
     match s.position {
-        GpsPosition::Geodetic(g) if !g.is_valid() => {
+        GpsPosition::Geodetic(g)
+            if !(g.lat_deg.is_finite() && g.lon_deg.is_finite() && g.alt_m.is_finite()) =>
+        {
             return Err(Error::NonFinite {
                 field: "gps.position",
+            });
+        }
+        GpsPosition::Geodetic(g) if g.lat_deg.abs() > 90.0 => {
+            return Err(Error::OutOfRange {
+                field: "gps.position.lat_deg",
+                reason: "latitude must lie in [-90, 90] deg",
+            });
+        }
+        GpsPosition::Geodetic(g) if g.lon_deg.abs() > 360.0 => {
+            return Err(Error::OutOfRange {
+                field: "gps.position.lon_deg",
+                reason: "longitude must lie in [-360, 360] deg",
             });
         }
         GpsPosition::Ned(p) if !all_finite(&p) => {

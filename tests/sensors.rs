@@ -183,3 +183,46 @@ fn errors_display_what_was_wrong() {
     let e = Error::NonFinite { field: "imu.gyro" };
     assert_eq!(e.to_string(), "non-finite value in `imu.gyro`");
 }
+
+#[test]
+fn a_latitude_out_of_range_is_named_as_such_not_as_non_finite() {
+    let mut g = Gps::<f64> {
+        t_us: 5,
+        position: GpsPosition::Geodetic(Geodetic {
+            lat_deg: 95.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        }),
+        velocity_ned_m_s: Vector3::zeros(),
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    };
+    let e = checked_gps(&g).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::OutOfRange {
+                field: "gps.position.lat_deg",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    g.position = GpsPosition::Geodetic(Geodetic {
+        lat_deg: 45.0,
+        lon_deg: 400.0,
+        alt_m: 400.0,
+    });
+    let e = checked_gps(&g).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::OutOfRange {
+                field: "gps.position.lon_deg",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}

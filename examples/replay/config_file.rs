@@ -26,12 +26,14 @@ pub fn resolve(defaults: NavConfig<f64>, path: Option<&Path>) -> Result<NavConfi
     let file: Table = toml::from_str(&text)?;
     let mut merged = Table::try_from(defaults)?;
     merge(&mut merged, file);
-    let config: NavConfig<f64> = Value::Table(merged)
+    let mut config: NavConfig<f64> = Value::Table(merged)
         .try_into()
         .map_err(|e| format!("--config {shown}: {e}"))?;
     config
         .validate()
         .map_err(|e| format!("--config {shown}: {e}"))?;
+    // The start delay is the mode's: show it where the loop keeps its own.
+    config.delay_loop = config.loop_config();
     Ok(config)
 }
 

@@ -65,7 +65,13 @@ impl<T: Scalar> Default for GainFusionConfig<T> {
 impl<T: Scalar> GainFusionConfig<T> {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+        let bad = |field, reason| {
+            Err(Error::InvalidConfig {
+                field,
+                value: None,
+                bound: crate::error::Bound::Rule(reason),
+            })
+        };
         if !(positive_finite(self.gamma) && self.gamma <= T::one()) {
             return bad("gfa.gamma", "must be in (0, 1]");
         }

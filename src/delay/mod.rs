@@ -289,7 +289,13 @@ impl<T: Scalar> DelayLoopConfig<T> {
     }
 
     fn sizes(&self) -> Result<GridSizes, Error> {
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+        let bad = |field, reason| {
+            Err(Error::InvalidConfig {
+                field,
+                value: None,
+                bound: crate::error::Bound::Rule(reason),
+            })
+        };
         let positive = positive_finite::<T>;
         validate_grid(
             self.correlation_rate_hz,
@@ -542,7 +548,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead > HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",
-                reason: "IMU history too short for buffer + largest shift + GPS lead",
+                value: Some(HIST as f64),
+                // The buffer, the largest shift and the GPS lead.
+                bound: crate::error::Bound::AtLeast(
+                    (sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead) as f64,
+                ),
             });
         }
         Ok(Self {

@@ -322,7 +322,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if extras.len() != N - NAV_STATES {
             return Err(Error::InvalidConfig {
                 field: "extra_states",
-                reason: "one description per state beyond the 16 navigation states",
+                value: None,
+                bound: crate::error::Bound::Rule(
+                    "one description per state beyond the 16 navigation states",
+                ),
             });
         }
         let mut core = Self {
@@ -359,7 +362,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             if !ok {
                 return Err(Error::InvalidConfig {
                     field: "extra_states",
-                    reason: "values must be finite, variances and intensities not negative",
+                    value: None,
+                    bound: crate::error::Bound::Rule(
+                        "values must be finite, variances and intensities not negative",
+                    ),
                 });
             }
             core.extra_initial[NAV_STATES + i] = e.initial;
@@ -387,7 +393,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !all_finite(p) || (0..N).any(|i| p[(i, i)] < T::zero()) {
             return Err(Error::InvalidConfig {
                 field: "initial covariance",
-                reason: "must be finite with a non-negative diagonal",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite with a non-negative diagonal"),
             });
         }
         let norm = quaternion_of(x).norm();
