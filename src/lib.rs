@@ -80,7 +80,7 @@ pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 pub use nav::{DelayCompensatedNav, DelayMode, NavConfig};
 pub use scalar::Scalar;
-pub use sensors::{Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
+pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 
 /// The README's examples, compiled and run as doctests so they stay true.
 #[cfg(doctest)]
