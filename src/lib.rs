@@ -71,6 +71,10 @@ pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
 
+/// The linear algebra of the API (`Vector3`, `UnitQuaternion`, ...): use
+/// this re-export to get the version the crate was built with.
+pub use nalgebra;
+
 pub use aekf17::{Aekf17Config, AugmentedEkf17};
 pub use delay::{
     DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayStatus, DelayUpdate, SensorDelays,
