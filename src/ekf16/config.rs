@@ -179,9 +179,17 @@ pub struct Ekf16Config<T: Scalar> {
     pub initial_position_std_m: T,
     /// Initial velocity standard deviation per axis, m/s.
     pub initial_velocity_std_m_s: T,
-    /// Initial accelerometer-bias standard deviation per axis, m/s^2.
+    /// Initial accelerometer-bias estimate, body FRD, m/s^2 (a calibrated
+    /// IMU; default zero). Subtracted from the accelerometer mean the
+    /// initial roll and pitch come from.
+    pub initial_accel_bias_m_s2: Vector3<T>,
+    /// Initial accelerometer-bias standard deviation per axis, m/s^2: the
+    /// uncertainty of [`initial_accel_bias_m_s2`](Self::initial_accel_bias_m_s2).
     pub initial_accel_bias_std_m_s2: T,
-    /// Initial gyro-bias standard deviation per axis, rad/s.
+    /// Initial gyro-bias estimate, body FRD, rad/s (default zero).
+    pub initial_gyro_bias_rad_s: Vector3<T>,
+    /// Initial gyro-bias standard deviation per axis, rad/s: the uncertainty
+    /// of [`initial_gyro_bias_rad_s`](Self::initial_gyro_bias_rad_s).
     pub initial_gyro_bias_std_rad_s: T,
 }
 
@@ -225,7 +233,9 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             initial_yaw_std_no_mag_rad: T::lit(0.5),
             initial_position_std_m: T::lit(5.0),
             initial_velocity_std_m_s: T::lit(1.0),
+            initial_accel_bias_m_s2: Vector3::zeros(),
             initial_accel_bias_std_m_s2: T::lit(0.1 * g),
+            initial_gyro_bias_rad_s: Vector3::zeros(),
             initial_gyro_bias_std_rad_s: T::lit(0.01),
         }
     }
@@ -307,8 +317,19 @@ impl<T: Scalar> Ekf16Config<T> {
             ("lever_arm_m.x", self.lever_arm_m.x),
             ("lever_arm_m.y", self.lever_arm_m.y),
             ("lever_arm_m.z", self.lever_arm_m.z),
+            ("initial_gyro_bias_rad_s.x", self.initial_gyro_bias_rad_s.x),
+            ("initial_gyro_bias_rad_s.y", self.initial_gyro_bias_rad_s.y),
+            ("initial_gyro_bias_rad_s.z", self.initial_gyro_bias_rad_s.z),
         ] {
             check::finite(field, v)?;
+        }
+        // A bias beyond the plausible sample is not a bias.
+        for (field, v) in [
+            ("initial_accel_bias_m_s2.x", self.initial_accel_bias_m_s2.x),
+            ("initial_accel_bias_m_s2.y", self.initial_accel_bias_m_s2.y),
+            ("initial_accel_bias_m_s2.z", self.initial_accel_bias_m_s2.z),
+        ] {
+            check::within(field, v, -self.max_accel_m_s2, self.max_accel_m_s2)?;
         }
         check::within(
             "mag_declination_rad",
