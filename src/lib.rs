@@ -12,9 +12,9 @@
 //! | feature | default | what it adds |
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
-//! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
+//! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates; a config file may be partial (missing fields take their defaults), an unknown key is an error |
 //! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
-//! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` |
+//! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` and `serde` |
 //!
 //! ## On a microcontroller (`no_std`, `f32`)
 //!
