@@ -246,7 +246,8 @@ impl<T: Scalar> Navigator<T> for EskfPeer {
         let GpsPosition::Ned(p) = gps.position() else {
             return Err(Error::InvalidConfig {
                 field: "gps.position",
-                reason: "the eskf row takes NED fixes",
+                value: None,
+                bound: delaynav::error::Bound::Rule("the eskf row takes NED fixes"),
             });
         };
         let p = na25_vector(&p);

@@ -13,6 +13,7 @@
 //! differences from the reference, refused samples, skipped rows by kind),
 //! and SVG plots (`--plots DIR`). See `docs/replay.md`.
 
+mod config_file;
 mod plots;
 
 use clap::Parser;
@@ -114,6 +115,13 @@ struct Args {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Navigator configuration (TOML, may be partial), merged over the one
+    /// derived from the log; its `ekf` table configures every estimator.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Write the resolved configuration as TOML to stdout and exit.
+    #[arg(long)]
+    print_config: bool,
 }
 
 /// What one estimator's replay gives: its scores and its health at the end.
@@ -131,15 +139,7 @@ const ESTIMATORS: &[Registered] = &[
         name: "proposed",
         about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
         run: |setup, out| {
-            let mut config = NavConfig {
-                ekf: setup.ekf16_config(),
-                imu_rate_hz: setup.imu_rate_hz,
-                ..NavConfig::default()
-            };
-            if let Some(rate) = setup.gps_rate_hz {
-                config.delay_loop = config.delay_loop.adapted_to_gps_rate(rate)?;
-            }
-            let mut nav = DelayCompensatedNav::<f64>::new(config)?;
+            let mut nav = DelayCompensatedNav::<f64>::new(setup.nav)?;
             let summary = run_one(setup, out, "proposed", &mut nav)?;
             Ok((summary, HealthSummary::of_navigator(&nav.health())))
         },
@@ -191,6 +191,8 @@ struct Setup {
     gps_rate_hz: Option<f64>,
     /// The filters' IMU noise model for this log.
     imu_noise: ImuNoise,
+    /// The navigator's configuration: the log's, with `--config` merged over it.
+    nav: NavConfig<f64>,
     accel_bias_random_walk: f64,
     /// Median reported GPS accuracies (h m, v m, speed m/s), the filters'
     /// accuracies for fixes that report none.
@@ -202,22 +204,53 @@ struct Setup {
 }
 
 impl Setup {
-    /// The navigation filter's configuration for this log: defaults with
-    /// the values derived from the log. Every estimator builds on it.
+    /// The navigation filter's configuration: every estimator builds on it.
     fn ekf16_config(&self) -> Ekf16Config<f64> {
+        self.nav.ekf
+    }
+
+    /// The navigator's configuration for this log: defaults with the values
+    /// derived from the log (IMU rate and noise, magnetic field, GPS rate and
+    /// accuracy).
+    fn log_config(&self) -> Result<NavConfig<f64>, Failure> {
         let defaults = Ekf16Config::<f64>::default();
         let [h, v, speed] = self.gps_accuracy;
-        Ekf16Config {
-            mag_inclination_rad: self.inclination_rad,
-            mag_declination_rad: self.declination_rad,
-            accel_noise_density: self.imu_noise.accel_noise_density,
-            gyro_noise_density: self.imu_noise.gyro_noise_density,
-            accel_bias_random_walk: self.accel_bias_random_walk,
-            gps_horizontal_std_m: h.unwrap_or(defaults.gps_horizontal_std_m),
-            gps_vertical_std_m: v.unwrap_or(defaults.gps_vertical_std_m),
-            gps_velocity_std_m_s: speed.unwrap_or(defaults.gps_velocity_std_m_s),
-            ..defaults
+        let mut config = NavConfig {
+            ekf: Ekf16Config {
+                mag_inclination_rad: self.inclination_rad,
+                mag_declination_rad: self.declination_rad,
+                accel_noise_density: self.imu_noise.accel_noise_density,
+                gyro_noise_density: self.imu_noise.gyro_noise_density,
+                accel_bias_random_walk: self.accel_bias_random_walk,
+                gps_horizontal_std_m: h.unwrap_or(defaults.gps_horizontal_std_m),
+                gps_vertical_std_m: v.unwrap_or(defaults.gps_vertical_std_m),
+                gps_velocity_std_m_s: speed.unwrap_or(defaults.gps_velocity_std_m_s),
+                ..defaults
+            },
+            imu_rate_hz: self.imu_rate_hz,
+            ..NavConfig::default()
+        };
+        if let Some(rate) = self.gps_rate_hz {
+            config.delay_loop = config.delay_loop.adapted_to_gps_rate(rate)?;
         }
+        Ok(config)
+    }
+
+    /// Merges the `--config` file over [`Self::log_config`] and makes the
+    /// figures reported beside the results follow it.
+    fn with_config_file(mut self, path: Option<&std::path::Path>) -> Result<Self, Failure> {
+        self.nav = config_file::resolve(self.log_config()?, path)?;
+        let ekf = self.nav.ekf;
+        self.imu_rate_hz = self.nav.imu_rate_hz;
+        self.declination_rad = ekf.mag_declination_rad;
+        self.inclination_rad = ekf.mag_inclination_rad;
+        self.run.estimator_declination_rad = ekf.mag_declination_rad;
+        self.imu_noise = ImuNoise {
+            accel_noise_density: ekf.accel_noise_density,
+            gyro_noise_density: ekf.gyro_noise_density,
+        };
+        self.accel_bias_random_walk = ekf.accel_bias_random_walk;
+        Ok(self)
     }
 }
 
@@ -647,7 +680,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         estimator_declination_rad: alignment.declination_rad,
         ..RunOptions::default()
     };
-    Ok(Setup {
+    Setup {
         files,
         reader,
         run,
@@ -662,7 +695,9 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         gps_accuracy,
         derived,
         quiet: args.quiet,
-    })
+        nav: NavConfig::default(),
+    }
+    .with_config_file(args.config.as_deref())
 }
 
 /// The derived values, one line each, as printed at the start of a replay.
@@ -855,6 +890,10 @@ fn run(mut args: Args) -> Result<(), Failure> {
     }
     let estimators = chosen(&args.estimator)?;
     let setup = setup(&args)?;
+    if args.print_config {
+        print!("{}", config_file::to_toml(&setup.nav)?);
+        return Ok(());
+    }
     let mut outputs = Outputs {
         estimates: match &args.out {
             Some(p) => Some(EstimateWriter::new(BufWriter::new(File::create(p)?))?),

@@ -120,7 +120,8 @@ impl<T: Scalar> Navigator<T> for FusionNav {
         let GpsPosition::Ned(p) = gps.position() else {
             return Err(Error::InvalidConfig {
                 field: "gps.position",
-                reason: "the fusion-nav row takes NED fixes",
+                value: None,
+                bound: delaynav::error::Bound::Rule("the fusion-nav row takes NED fixes"),
             });
         };
         let time = self.taken(gps.time_us());
