@@ -12,9 +12,9 @@
 //! | feature | default | what it adds |
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
-//! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates |
+//! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates; a config file may be partial (missing fields take their defaults), an unknown key is an error |
 //! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
-//! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` |
+//! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` and `serde` |
 //!
 //! ## On a microcontroller (`no_std`, `f32`)
 //!
@@ -71,6 +71,10 @@ pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
 
+/// The linear algebra of the API (`Vector3`, `UnitQuaternion`, ...): use
+/// this re-export to get the version the crate was built with.
+pub use nalgebra;
+
 pub use aekf17::{Aekf17Config, AugmentedEkf17};
 pub use delay::{
     DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayStatus, DelayUpdate, SensorDelays,
@@ -80,7 +84,7 @@ pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 pub use nav::{DelayCompensatedNav, DelayMode, NavConfig};
 pub use scalar::Scalar;
-pub use sensors::{Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
+pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 
 /// The README's examples, compiled and run as doctests so they stay true.
 #[cfg(doctest)]

@@ -71,7 +71,33 @@ pub enum GpsPosition<T: Scalar> {
     Ned(Vector3<T>),
 }
 
+/// What kind of solution a receiver reports (NMEA GGA quality, u-blox
+/// `fixType`, ArduPilot `GPS.Status`, PX4 `fix_type`), from worst to best.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[non_exhaustive]
+pub enum FixType {
+    /// No position: the fix is refused ([`checked_gps`]).
+    NoFix,
+    /// Dead reckoning only (the receiver's own inertial extrapolation).
+    DeadReckoning,
+    /// Horizontal only; the altitude is held or assumed.
+    Fix2d,
+    /// A 3-D GNSS fix.
+    Fix3d,
+    /// 3-D with differential corrections (SBAS, DGPS).
+    Differential,
+    /// RTK with float ambiguities (decimetres).
+    RtkFloat,
+    /// RTK with fixed ambiguities (centimetres).
+    RtkFixed,
+}
+
 /// One GPS fix.
+///
+/// Only the time, position and velocity are required; the reported
+/// accuracies and fix quality have default methods returning `None` (not
+/// reported), so a driver implements what its receiver gives.
 pub trait GpsFix<T: Scalar> {
     /// Time the fix was received, on the IMU's clock, microseconds.
     fn time_us(&self) -> u64;
@@ -90,6 +116,19 @@ pub trait GpsFix<T: Scalar> {
     }
     /// Receiver's speed accuracy (1 sigma per axis), m/s, if reported.
     fn speed_accuracy_m_s(&self) -> Option<T> {
+        None
+    }
+    /// The kind of solution, if reported. [`FixType::NoFix`] is refused by
+    /// every estimator (counted as an invalid fix); the others are fused
+    /// with their accuracies, so report a 2-D fix's vertical accuracy as
+    /// large.
+    fn fix_type(&self) -> Option<FixType> {
+        None
+    }
+    /// Satellites used in the solution, if reported. Not used by the
+    /// estimators (the accuracies carry the information); there for logging
+    /// and for a caller's own gate.
+    fn satellites(&self) -> Option<u8> {
         None
     }
 }
@@ -236,7 +275,8 @@ pub const MAX_NED_POSITION_M: f64 = 1.0e7;
 /// times the 515 m/s at which receivers stop reporting).
 pub const MAX_GPS_VELOCITY_M_S: f64 = 1.0e4;
 
-/// Copy any [`GpsFix`] into a [`Gps`], refusing non-finite values, NED
+/// Copy any [`GpsFix`] into a [`Gps`], refusing a fix reported as
+/// [`FixType::NoFix`], non-finite values, NED
 /// positions and velocities beyond [`MAX_NED_POSITION_M`] /
 /// [`MAX_GPS_VELOCITY_M_S`], and reported accuracies that are not finite,
 /// below [`MIN_ACCURACY`], or above
@@ -244,6 +284,12 @@ pub const MAX_GPS_VELOCITY_M_S: f64 = 1.0e4;
 /// is checked here, before it can touch a covariance (the estimators count
 /// the refusal as an invalid fix).
 pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, Error> {
+    if gps.fix_type() == Some(FixType::NoFix) {
+        return Err(Error::OutOfRange {
+            field: "gps.fix_type",
+            reason: "the receiver reports no fix",
+        });
+    }
     let s = Gps {
         t_us: gps.time_us(),
         position: gps.position(),
@@ -253,9 +299,23 @@ pub fn checked_gps<T: Scalar, G: GpsFix<T> + ?Sized>(gps: &G) -> Result<Gps<T>, 
         speed_accuracy_m_s: gps.speed_accuracy_m_s(),
     };
     match s.position {
-        GpsPosition::Geodetic(g) if !g.is_valid() => {
+        GpsPosition::Geodetic(g)
+            if !(g.lat_deg.is_finite() && g.lon_deg.is_finite() && g.alt_m.is_finite()) =>
+        {
             return Err(Error::NonFinite {
                 field: "gps.position",
+            });
+        }
+        GpsPosition::Geodetic(g) if g.lat_deg.abs() > 90.0 => {
+            return Err(Error::OutOfRange {
+                field: "gps.position.lat_deg",
+                reason: "latitude must lie in [-90, 90] deg",
+            });
+        }
+        GpsPosition::Geodetic(g) if g.lon_deg.abs() > 360.0 => {
+            return Err(Error::OutOfRange {
+                field: "gps.position.lon_deg",
+                reason: "longitude must lie in [-360, 360] deg",
             });
         }
         GpsPosition::Ned(p) if !all_finite(&p) => {

@@ -187,7 +187,8 @@ macro_rules! ekf16_tests {
                     bad.validate(),
                     Err(Error::InvalidConfig {
                         field: "gyro_noise_density",
-                        reason: "must be positive"
+                        value: Some(-1.0),
+                        bound: delaynav::error::Bound::PositiveFinite,
                     })
                 );
                 let field_of = |bad: Ekf16Config<T>| match bad.validate() {

@@ -586,7 +586,7 @@ macro_rules! nav_tests {
                         },
                         ..c
                     }),
-                    "accel_whitening"
+                    "accel_whitening.cutoff_hz"
                 );
                 assert_eq!(
                     field(NavConfig {

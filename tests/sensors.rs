@@ -183,3 +183,102 @@ fn errors_display_what_was_wrong() {
     let e = Error::NonFinite { field: "imu.gyro" };
     assert_eq!(e.to_string(), "non-finite value in `imu.gyro`");
 }
+
+#[test]
+fn a_latitude_out_of_range_is_named_as_such_not_as_non_finite() {
+    let mut g = Gps::<f64> {
+        t_us: 5,
+        position: GpsPosition::Geodetic(Geodetic {
+            lat_deg: 95.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        }),
+        velocity_ned_m_s: Vector3::zeros(),
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    };
+    let e = checked_gps(&g).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::OutOfRange {
+                field: "gps.position.lat_deg",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    g.position = GpsPosition::Geodetic(Geodetic {
+        lat_deg: 45.0,
+        lon_deg: 400.0,
+        alt_m: 400.0,
+    });
+    let e = checked_gps(&g).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::OutOfRange {
+                field: "gps.position.lon_deg",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+/// A driver's fix type with the quality a receiver reports.
+struct ReceiverFix {
+    fix_type: delaynav::FixType,
+    satellites: u8,
+}
+
+impl delaynav::GpsFix<f64> for ReceiverFix {
+    fn time_us(&self) -> u64 {
+        1_000
+    }
+    fn position(&self) -> GpsPosition<f64> {
+        GpsPosition::Ned(Vector3::new(1.0, 2.0, 3.0))
+    }
+    fn velocity_ned_m_s(&self) -> Vector3<f64> {
+        Vector3::zeros()
+    }
+    fn fix_type(&self) -> Option<delaynav::FixType> {
+        Some(self.fix_type)
+    }
+    fn satellites(&self) -> Option<u8> {
+        Some(self.satellites)
+    }
+}
+
+#[test]
+fn fix_quality_defaults_to_not_reported_and_no_fix_is_refused_and_counted() {
+    use delaynav::{Ekf16, Ekf16Config, FixType, GpsFix, Navigator};
+    let plain = Gps::<f64> {
+        t_us: 5,
+        position: GpsPosition::Ned(Vector3::zeros()),
+        velocity_ned_m_s: Vector3::zeros(),
+        horizontal_accuracy_m: None,
+        vertical_accuracy_m: None,
+        speed_accuracy_m_s: None,
+    };
+    assert_eq!((plain.fix_type(), plain.satellites()), (None, None));
+
+    let fix = |fix_type| ReceiverFix {
+        fix_type,
+        satellites: 9,
+    };
+    assert_eq!(fix(FixType::Fix3d).satellites(), Some(9));
+    assert!(checked_gps(&fix(FixType::Fix3d)).is_ok());
+    assert!(checked_gps(&fix(FixType::Fix2d)).is_ok());
+    assert_eq!(
+        checked_gps(&fix(FixType::NoFix)),
+        Err(Error::OutOfRange {
+            field: "gps.fix_type",
+            reason: "the receiver reports no fix",
+        })
+    );
+    let mut ekf = Ekf16::<f64>::new(Ekf16Config::default()).unwrap();
+    assert!(ekf.push_gps(&fix(FixType::NoFix)).is_err());
+    assert_eq!(ekf.refusals().gps_invalid, 1);
+}

@@ -13,17 +13,21 @@
 //! differences from the reference, refused samples, skipped rows by kind),
 //! and SVG plots (`--plots DIR`). See `docs/replay.md`.
 
+mod config_file;
 mod plots;
 
 use clap::Parser;
+use delaynav::ekf16::GpsReset;
+use delaynav::nav::health::Health;
 use delaynav::replay::{
-    ArduPilotImu, EstimateWriter, LogFiles, LogFormat, LogReader, ReaderOptions,
-    ReferenceAlignment, ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
-    dataflash::DataFlashLog, flight_window, inclination_at_rest, replay,
+    ArduPilotImu, EstimateWriter, FusionRecords, ImuNoise, LogDefaults, LogFiles, LogFormat,
+    LogReader, MagneticModel, NoiseSource, ReaderOptions, ReferenceAlignment, ReferenceReader,
+    RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot, dataflash::DataFlashLog,
+    flight_window, inclination_at_rest, log_date, magnetic_model, replay,
 };
 use delaynav::{
     Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
-    Navigator,
+    Navigator, RefusalCounters,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
@@ -76,10 +80,12 @@ struct Args {
     #[arg(long)]
     plots: Option<PathBuf>,
     /// Magnetic declination, degrees east (default: ArduPilot `COMPASS_DEC`
-    /// when `COMPASS_AUTODEC = 0`, else log171's measured +11.8; 0 for other layouts).
+    /// when `COMPASS_AUTODEC = 0`, else the World Magnetic Model at the first
+    /// fix and the log's date).
     #[arg(long)]
     declination_deg: Option<f64>,
-    /// Magnetic inclination, degrees down (default: measured over the log's first 10 s at rest).
+    /// Magnetic inclination, degrees down (default: measured over the
+    /// stationary segment, else the World Magnetic Model).
     #[arg(long)]
     inclination_deg: Option<f64>,
     /// Mounting trim roll, radians (default: ArduPilot `AHRS_TRIM_X` from params.csv, else 0).
@@ -96,8 +102,8 @@ struct Args {
     #[arg(long, default_value_t = 0)]
     imu_instance: u8,
     /// Accelerometer noise density of the filters, m/s^2/sqrt(Hz) (default:
-    /// ArduPilot logs log171's measured in-flight value, others the paper's
-    /// Table 3; see `docs/replay.md`).
+    /// measured on the log, never below the filters' default; see
+    /// `docs/replay.md`).
     #[arg(long)]
     accel_noise_density: Option<f64>,
     /// Gyro noise density of the filters, rad/s/sqrt(Hz) (default: as above).
@@ -106,13 +112,26 @@ struct Args {
     /// Accelerometer bias random walk, m/s^2/sqrt(s) (default: the filters').
     #[arg(long)]
     accel_bias_random_walk: Option<f64>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Navigator configuration (TOML, may be partial), merged over the one
+    /// derived from the log; its `ekf` table configures every estimator.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Write the resolved configuration as TOML to stdout and exit.
+    #[arg(long)]
+    print_config: bool,
 }
+
+/// What one estimator's replay gives: its scores and its health at the end.
+type Outcome = (RunSummary, HealthSummary);
 
 /// One estimator the replay can run. Adding one is one entry here.
 struct Registered {
     name: &'static str,
     about: &'static str,
-    run: fn(&Setup, &mut Outputs) -> Result<RunSummary, Failure>,
+    run: fn(&Setup, &mut Outputs) -> Result<Outcome, Failure>,
 }
 
 const ESTIMATORS: &[Registered] = &[
@@ -120,17 +139,9 @@ const ESTIMATORS: &[Registered] = &[
         name: "proposed",
         about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
         run: |setup, out| {
-            let config = NavConfig {
-                ekf: setup.ekf16_config(),
-                imu_rate_hz: setup.imu_rate_hz,
-                ..NavConfig::default()
-            };
-            run_one(
-                setup,
-                out,
-                "proposed",
-                &mut DelayCompensatedNav::<f64>::new(config)?,
-            )
+            let mut nav = DelayCompensatedNav::<f64>::new(setup.nav)?;
+            let summary = run_one(setup, out, "proposed", &mut nav)?;
+            Ok((summary, HealthSummary::of_navigator(&nav.health())))
         },
     },
     Registered {
@@ -138,13 +149,29 @@ const ESTIMATORS: &[Registered] = &[
         about: "17-state augmented EKF with the delay as a state (the paper's baseline)",
         run: |setup, out| {
             let config = Aekf17Config::with_nav(setup.ekf16_config());
-            run_one(setup, out, "aekf17", &mut AugmentedEkf17::new(config)?)
+            let mut nav = AugmentedEkf17::new(config)?;
+            let summary = run_one(setup, out, "aekf17", &mut nav)?;
+            let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            health.initialized(nav.estimate().is_some());
+            health.delay_status = Some(format!(
+                "state estimate {:.3} s +- {:.3} s, clamped to its range {} times",
+                nav.delay_s(),
+                nav.delay_std_s(),
+                nav.delay_clamps()
+            ));
+            Ok((summary, health))
         },
     },
     Registered {
         name: "ekf16",
         about: "16-state EKF, GPS fused as if current (no delay handling)",
-        run: |setup, out| run_one(setup, out, "ekf16", &mut Ekf16::new(setup.ekf16_config())?),
+        run: |setup, out| {
+            let mut nav = Ekf16::new(setup.ekf16_config())?;
+            let summary = run_one(setup, out, "ekf16", &mut nav)?;
+            let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
+            health.initialized(nav.estimate().is_some());
+            Ok((summary, health))
+        },
     },
 ];
 
@@ -158,48 +185,212 @@ struct Setup {
     run: RunOptions,
     declination_rad: f64,
     inclination_rad: f64,
-    /// Median IMU rate over the log's first 10 s, Hz.
+    /// IMU rate, Hz (median interval of the log).
     imu_rate_hz: f64,
+    /// GPS rate, Hz, when measured within the delay loop's 1-20 Hz.
+    gps_rate_hz: Option<f64>,
     /// The filters' IMU noise model for this log.
     imu_noise: ImuNoise,
-}
-
-/// The filters' IMU noise model (continuous-time densities, see `Ekf16Config`).
-#[derive(Debug, Clone, Copy)]
-struct ImuNoise {
-    accel_noise_density: f64,
-    gyro_noise_density: f64,
+    /// The navigator's configuration: the log's, with `--config` merged over it.
+    nav: NavConfig<f64>,
     accel_bias_random_walk: f64,
+    /// Median reported GPS accuracies (h m, v m, speed m/s), the filters'
+    /// accuracies for fixes that report none.
+    gps_accuracy: [Option<f64>; 3],
+    /// What was measured and chosen, printed and written to the JSON.
+    derived: Value,
+    /// No progress bar.
+    quiet: bool,
 }
 
 impl Setup {
-    /// The navigation filter's configuration for this log: defaults with
-    /// the log's magnetic field. Every estimator builds on it.
+    /// The navigation filter's configuration: every estimator builds on it.
     fn ekf16_config(&self) -> Ekf16Config<f64> {
-        Ekf16Config {
-            mag_inclination_rad: self.inclination_rad,
-            mag_declination_rad: self.declination_rad,
-            accel_noise_density: self.imu_noise.accel_noise_density,
-            gyro_noise_density: self.imu_noise.gyro_noise_density,
-            accel_bias_random_walk: self.imu_noise.accel_bias_random_walk,
-            ..Ekf16Config::default()
+        self.nav.ekf
+    }
+
+    /// The navigator's configuration for this log: defaults with the values
+    /// derived from the log (IMU rate and noise, magnetic field, GPS rate and
+    /// accuracy).
+    fn log_config(&self) -> Result<NavConfig<f64>, Failure> {
+        let defaults = Ekf16Config::<f64>::default();
+        let [h, v, speed] = self.gps_accuracy;
+        let mut config = NavConfig {
+            ekf: Ekf16Config {
+                mag_inclination_rad: self.inclination_rad,
+                mag_declination_rad: self.declination_rad,
+                accel_noise_density: self.imu_noise.accel_noise_density,
+                gyro_noise_density: self.imu_noise.gyro_noise_density,
+                accel_bias_random_walk: self.accel_bias_random_walk,
+                gps_horizontal_std_m: h.unwrap_or(defaults.gps_horizontal_std_m),
+                gps_vertical_std_m: v.unwrap_or(defaults.gps_vertical_std_m),
+                gps_velocity_std_m_s: speed.unwrap_or(defaults.gps_velocity_std_m_s),
+                ..defaults
+            },
+            imu_rate_hz: self.imu_rate_hz,
+            ..NavConfig::default()
+        };
+        if let Some(rate) = self.gps_rate_hz {
+            config.delay_loop = config.delay_loop.adapted_to_gps_rate(rate)?;
         }
+        Ok(config)
+    }
+
+    /// Merges the `--config` file over [`Self::log_config`] and makes the
+    /// figures reported beside the results follow it.
+    fn with_config_file(mut self, path: Option<&std::path::Path>) -> Result<Self, Failure> {
+        self.nav = config_file::resolve(self.log_config()?, path)?;
+        let ekf = self.nav.ekf;
+        self.imu_rate_hz = self.nav.imu_rate_hz;
+        self.declination_rad = ekf.mag_declination_rad;
+        self.inclination_rad = ekf.mag_inclination_rad;
+        self.run.estimator_declination_rad = ekf.mag_declination_rad;
+        self.imu_noise = ImuNoise {
+            accel_noise_density: ekf.accel_noise_density,
+            gyro_noise_density: ekf.gyro_noise_density,
+        };
+        self.accel_bias_random_walk = ekf.accel_bias_random_walk;
+        Ok(self)
     }
 }
 
-/// Median IMU rate, Hz, over the first `window_us` of a log.
-fn imu_rate_hz(events: LogReader<f64>, window_us: u64) -> Option<f64> {
-    let times: Vec<u64> = events
-        .filter(|e| matches!(e, delaynav::replay::SensorEvent::Imu(_)))
-        .map(|e| e.time_us())
-        .take_while({
-            let mut first = None;
-            move |&t| t <= *first.get_or_insert(t) + window_us
+/// What an estimator reports about itself at the end of a replay.
+#[derive(Debug, Default)]
+struct HealthSummary {
+    /// Alignment state (the navigator's; the filters: initialized or not).
+    alignment: Option<String>,
+    /// Samples refused, `sensor_reason` and count (non-zero only).
+    refused: Vec<(String, u64)>,
+    /// Fusions rejected by a gate.
+    gated: Vec<(String, u64)>,
+    /// Resets by block and cause.
+    resets: Vec<(String, u64)>,
+    /// The last reset and its cause.
+    last_reset: Option<String>,
+    /// The delay loop's status.
+    delay_status: Option<String>,
+}
+
+/// `(name, value)` of the named fields of a counter struct.
+macro_rules! fields {
+    ($c:expr; $($f:ident),* $(,)?) => {
+        vec![$((stringify!($f).to_string(), u64::from($c.$f))),*]
+    };
+}
+
+fn non_zero(list: Vec<(String, u64)>) -> Vec<(String, u64)> {
+    list.into_iter().filter(|(_, n)| *n > 0).collect()
+}
+
+impl HealthSummary {
+    /// A filter's counters ([`RefusalCounters`]) and its last GPS reset.
+    fn of_filter(c: RefusalCounters, last: Option<GpsReset>) -> Self {
+        Self {
+            refused: non_zero(fields!(c; imu_non_finite, imu_out_of_range, imu_time,
+                imu_step_too_long, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
+                mag_time, not_positive_definite)),
+            gated: non_zero(fields!(c; gps_position_rejected, gps_velocity_rejected,
+                mag_rejected, mag_disturbed)),
+            resets: non_zero(fields!(c; gps_position_resets, gps_velocity_resets,
+                gps_divergence_resets)),
+            last_reset: last.map(|r| {
+                format!(
+                    "{:?} block, {:?}, at {:.1} s",
+                    r.block,
+                    r.cause,
+                    r.t_us as f64 * 1e-6
+                )
+            }),
+            ..Self::default()
+        }
+    }
+
+    /// The alignment of a filter without an alignment state: initialized
+    /// (it gives an estimate) or not.
+    fn initialized(&mut self, yes: bool) {
+        self.alignment = Some(if yes { "Initialized" } else { "NotInitialized" }.to_string());
+    }
+
+    /// The navigator's [`Health`]: its own refusals, its horizon filter's
+    /// counters, alignment, last reset and delay status.
+    fn of_navigator(h: &Health<f64>) -> Self {
+        let mut summary = Self::of_filter(h.ekf_refusals, None);
+        let n = h.refusals;
+        let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead, imu_gap,
+            gps_invalid, gps_time, gps_accuracy, gps_ahead, gps_mixed_frames, mag_invalid,
+            mag_time, mag_ahead, mag_dropped, horizon_refused, delay_loop_refused);
+        summary.refused = non_zero(own)
+            .into_iter()
+            .map(|(k, v)| (format!("nav.{k}"), v))
+            .chain(
+                summary
+                    .refused
+                    .into_iter()
+                    .map(|(k, v)| (format!("horizon.{k}"), v)),
+            )
+            .collect();
+        summary.alignment = Some(format!("{:?}", h.alignment));
+        summary.last_reset = h.last_reset.map(|r| {
+            let at = r
+                .t_us
+                .map_or_else(String::new, |t| format!(" at {:.1} s", t as f64 * 1e-6));
+            format!("{:?}{at}", r.cause)
+        });
+        summary.delay_status = Some(match h.delay.status {
+            Some(status) => format!(
+                "{status:?}, {:.3} s +- {:.3} s, {} valid updates",
+                h.delay.delay_s, h.delay.delay_std_s, h.delay.valid_updates
+            ),
+            None => format!("fixed at {:.3} s", h.delay.delay_s),
+        });
+        summary
+    }
+
+    fn json(&self) -> Value {
+        let map = |list: &[(String, u64)]| {
+            list.iter()
+                .map(|(k, v)| (k.clone(), json!(v)))
+                .collect::<serde_json::Map<_, _>>()
+        };
+        json!({
+            "alignment": self.alignment,
+            "refused": map(&self.refused),
+            "gated": map(&self.gated),
+            "resets": map(&self.resets),
+            "last_reset": self.last_reset,
+            "delay_status": self.delay_status,
         })
-        .collect();
-    let mut steps: Vec<u64> = times.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_unstable();
-    steps.get(steps.len() / 2).map(|&dt| 1e6 / dt as f64)
+    }
+
+    fn print(&self, name: &str) {
+        let list = |l: &[(String, u64)]| {
+            if l.is_empty() {
+                "none".to_string()
+            } else {
+                l.iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        };
+        println!("{name}");
+        let rows = [
+            ("alignment", self.alignment.clone()),
+            ("refused", Some(list(&self.refused))),
+            ("gated", Some(list(&self.gated))),
+            ("resets", Some(list(&self.resets))),
+            (
+                "last reset",
+                Some(self.last_reset.clone().unwrap_or_else(|| "none".into())),
+            ),
+            ("delay", self.delay_status.clone()),
+        ];
+        for (label, value) in rows {
+            if let Some(v) = value {
+                println!("  {label:<10} {v}");
+            }
+        }
+    }
 }
 
 /// Per-sample outputs shared across estimators.
@@ -211,7 +402,7 @@ struct Outputs {
     keep_attitude: bool,
 }
 
-fn run_one<N: Navigator<f64>>(
+fn run_one<N: Navigator<f64> + FusionRecords<f64>>(
     setup: &Setup,
     out: &mut Outputs,
     name: &str,
@@ -252,6 +443,10 @@ fn run_one<N: Navigator<f64>>(
 }
 
 fn progress_bar(name: &str, setup: &Setup) -> ProgressBar {
+    if setup.quiet {
+        return ProgressBar::hidden();
+    }
+    // indicatif draws to stderr, and nothing when it is not a terminal.
     let (start, end) = (setup.run.start_us.unwrap_or(0), setup.run.end_us);
     let Some(end) = end else {
         return ProgressBar::new_spinner().with_prefix(name.to_string());
@@ -284,62 +479,19 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         LogFormat::parse_choice(&args.format)?,
         &reader,
     )?;
-
     if files.format == LogFormat::ArduPilot && imu_instance > 1 {
         return Err(format!(
             "IMU instance {imu_instance}: the ArduPilot CSV layout has imu.csv (0) and imu2.csv (1)"
         )
         .into());
     }
-    let ardupilot_layout = matches!(files.format, LogFormat::ArduPilot | LogFormat::DataFlash);
-    let mut alignment = ReferenceAlignment::default();
-    let params = match (&files.params, files.format) {
-        (Some(path), LogFormat::DataFlash) => Some(DataFlashLog::open(path)?.params()),
-        (Some(path), LogFormat::ArduPilot) => {
-            Some(ardupilot::read_params(path, &mut SkipCounts::default())?)
-        }
-        _ => None,
-    };
-    if let Some(values) = &params {
-        alignment =
-            ardupilot::alignment_from_params(values, ardupilot::LOG171_ALIGNMENT.declination_rad);
-    }
-    if let Some(d) = args.declination_deg {
-        alignment.declination_rad = d.to_radians();
-    }
-    alignment.trim_roll_rad = args.trim_roll_rad.unwrap_or(alignment.trim_roll_rad);
-    alignment.trim_pitch_rad = args.trim_pitch_rad.unwrap_or(alignment.trim_pitch_rad);
+    let open = || LogReader::<f64>::open(&files, &reader);
 
-    let inclination_rad = match args.inclination_deg {
-        Some(i) => i.to_radians(),
-        None => {
-            inclination_at_rest(LogReader::<f64>::open(&files, &reader)?, 10_000_000).unwrap_or(0.0)
-        }
-    };
-    let imu_rate_hz = imu_rate_hz(LogReader::open(&files, &reader)?, 10_000_000).unwrap_or(1000.0);
-    // Per log: ArduPilot's 50 Hz logged IMU has log171's measured in-flight
-    // noise (docs/replay.md); other layouts keep the paper's Table 3.
-    let defaults = if ardupilot_layout {
-        ardupilot::with_log171_imu_noise(Ekf16Config::<f64>::default())
-    } else {
-        Ekf16Config::default()
-    };
-    let imu_noise = ImuNoise {
-        accel_noise_density: args
-            .accel_noise_density
-            .unwrap_or(defaults.accel_noise_density),
-        gyro_noise_density: args
-            .gyro_noise_density
-            .unwrap_or(defaults.gyro_noise_density),
-        accel_bias_random_walk: args
-            .accel_bias_random_walk
-            .unwrap_or(defaults.accel_bias_random_walk),
-    };
-    // The flight window from the log, unless both ends are given.
-    let found = if args.simulated || (args.from.is_some() && args.to.is_some()) {
+    // The flight window: found in the log (the simulated run's is fixed).
+    let found = if args.simulated {
         None
     } else {
-        let window = flight_window(LogReader::<f64>::open(&files, &reader)?);
+        let window = flight_window(open()?);
         match window {
             Some(w) => eprintln!(
                 "flight window from the log: {:.1}-{:.1} s (take-off {:.1} s, landing {:.1} s, {}){}",
@@ -363,26 +515,262 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         }
         window
     };
+    let measured = LogDefaults::measure(open()?, found.as_ref());
+    let imu_rate_hz = measured
+        .imu_rate_hz
+        .unwrap_or(NavConfig::<f64>::default().imu_rate_hz);
+    let gps_rate_hz = measured.gps_rate_hz.filter(|r| (1.0..=20.0).contains(r));
+
+    // IMU noise: measured (never below the filters' defaults), flags override.
+    let defaults = Ekf16Config::<f64>::default();
+    let (noise, [accel_source, gyro_source]) = measured.imu_noise(ImuNoise {
+        accel_noise_density: defaults.accel_noise_density,
+        gyro_noise_density: defaults.gyro_noise_density,
+    });
+    let imu_noise = ImuNoise {
+        accel_noise_density: args
+            .accel_noise_density
+            .unwrap_or(noise.accel_noise_density),
+        gyro_noise_density: args.gyro_noise_density.unwrap_or(noise.gyro_noise_density),
+    };
+    let source = |flag: Option<f64>, s: NoiseSource| flag.map_or(s.name(), |_| "command line");
+
+    // Declination: the flag, else the autopilot's own manual setting, else
+    // the World Magnetic Model at the first fix on the log's date.
+    let date = log_date(&files)?;
+    let model: Option<MagneticModel> = measured
+        .first_fix
+        .zip(date)
+        .and_then(|(place, date)| magnetic_model(&place, date));
+    if let (Some(m), Some(date)) = (model, date)
+        && m.date_clamped
+    {
+        eprintln!(
+            "warning: the log is dated {date}, outside the World Magnetic Model's 2020-2029: \
+             its field is evaluated at {} (the nearest date it covers); \
+             give --declination-deg to set it",
+            m.model_date
+        );
+    }
+    let params = match (&files.params, files.format) {
+        (Some(path), LogFormat::DataFlash) => Some(DataFlashLog::open(path)?.params()),
+        (Some(path), LogFormat::ArduPilot) => {
+            Some(ardupilot::read_params(path, &mut SkipCounts::default())?)
+        }
+        _ => None,
+    };
+    let model_declination = model.map_or(0.0, |m| m.declination_rad);
+    let mut alignment = match &params {
+        Some(values) => ardupilot::alignment_from_params(values, model_declination),
+        None => ReferenceAlignment {
+            declination_rad: model_declination,
+            ..ReferenceAlignment::default()
+        },
+    };
+    let manual_declination = params
+        .as_ref()
+        .is_some_and(|p| p.get("COMPASS_AUTODEC") == Some(&0.0) && p.contains_key("COMPASS_DEC"));
+    let declination_source = if args.declination_deg.is_some() {
+        "command line"
+    } else if manual_declination {
+        "log parameter COMPASS_DEC (COMPASS_AUTODEC = 0)"
+    } else if model.is_some_and(|m| m.date_clamped) {
+        "World Magnetic Model at the nearest date it covers"
+    } else if model.is_some() {
+        "World Magnetic Model"
+    } else {
+        eprintln!(
+            "warning: no date or no geodetic fix in the log: declination 0 (give --declination-deg)"
+        );
+        "none (0)"
+    };
+    if let Some(d) = args.declination_deg {
+        alignment.declination_rad = d.to_radians();
+    }
+    alignment.trim_roll_rad = args.trim_roll_rad.unwrap_or(alignment.trim_roll_rad);
+    alignment.trim_pitch_rad = args.trim_pitch_rad.unwrap_or(alignment.trim_pitch_rad);
+
+    // Inclination: the flag, else measured over the stationary segment,
+    // else the model, else measured over the log's first 10 s.
+    let (inclination_rad, inclination_source) = match (args.inclination_deg, measured.stationary) {
+        (Some(i), _) => (i.to_radians(), "command line"),
+        (None, Some(still)) => {
+            let events = open()?.skip_while(move |e| e.time_us() < still.from_us);
+            match inclination_at_rest(events, still.to_us - still.from_us) {
+                Some(i) => (i, "stationary segment"),
+                None => (
+                    model.map_or(0.0, |m| m.inclination_rad),
+                    "World Magnetic Model",
+                ),
+            }
+        }
+        (None, None) => match model {
+            Some(m) => (m.inclination_rad, "World Magnetic Model"),
+            None => (
+                inclination_at_rest(open()?, 10_000_000).unwrap_or(0.0),
+                "the log's first 10 s",
+            ),
+        },
+    };
+
+    if let Some(m) = model
+        && (m.inclination_rad - inclination_rad).abs() > 10f64.to_radians()
+    {
+        eprintln!(
+            "warning: the magnetometer's inclination ({:.1} deg, {inclination_source}) is {:.1} deg \
+             from the World Magnetic Model's ({:.1} deg): uncalibrated or disturbed magnetometer? \
+             The measured value is used (give --inclination-deg to set it)",
+            inclination_rad.to_degrees(),
+            (inclination_rad - m.inclination_rad).abs().to_degrees(),
+            m.inclination_rad.to_degrees()
+        );
+    }
+    let gps_accuracy = [
+        measured.gps_horizontal_accuracy_m,
+        measured.gps_vertical_accuracy_m,
+        measured.gps_speed_accuracy_m_s,
+    ];
+    let segment = |m: Option<delaynav::replay::defaults::NoiseMeasurement>| {
+        m.map(|m| {
+            json!({
+                "from_s": m.from_us as f64 * 1e-6,
+                "to_s": m.to_us as f64 * 1e-6,
+                "accel_density_per_axis": m.accel_density,
+                "gyro_density_per_axis": m.gyro_density,
+            })
+        })
+    };
+    let derived = json!({
+        "imu_rate_hz": measured.imu_rate_hz,
+        "gps_rate_hz": measured.gps_rate_hz,
+        "mag_rate_hz": measured.mag_rate_hz,
+        "gps_accuracy_reported_median": {
+            "horizontal_m": gps_accuracy[0],
+            "vertical_m": gps_accuracy[1],
+            "speed_m_s": gps_accuracy[2],
+        },
+        "stationary_segment": segment(measured.stationary),
+        "in_flight": segment(measured.in_flight),
+        "accel_noise_density": imu_noise.accel_noise_density,
+        "accel_noise_source": source(args.accel_noise_density, accel_source),
+        "gyro_noise_density": imu_noise.gyro_noise_density,
+        "gyro_noise_source": source(args.gyro_noise_density, gyro_source),
+        "log_date": date.map(|d| d.to_string()),
+        "first_fix": measured.first_fix.map(|g| [g.lat_deg, g.lon_deg, g.alt_m]),
+        "model": model.map(|m| json!({
+            "declination_deg": m.declination_rad.to_degrees(),
+            "declination_std_deg": m.declination_std_rad.to_degrees(),
+            "inclination_deg": m.inclination_rad.to_degrees(),
+            "evaluated_at": m.model_date.to_string(),
+            "date_clamped": m.date_clamped,
+        })),
+        "declination_deg": alignment.declination_rad.to_degrees(),
+        "declination_source": declination_source,
+        "inclination_deg": inclination_rad.to_degrees(),
+        "inclination_source": inclination_source,
+    });
+
     let from_s = args.from.or(found.map(|w| w.from_us as f64 * 1e-6));
     let to_s = args.to.or(found.map(|w| w.to_us as f64 * 1e-6));
-    let score_from_us = from_s.map(seconds_to_us);
     let run = RunOptions {
         start_us: from_s.map(|f| seconds_to_us(f - args.warmup)),
-        score_from_us,
+        score_from_us: from_s.map(seconds_to_us),
         end_us: to_s.map(seconds_to_us),
         alignment,
         estimator_declination_rad: alignment.declination_rad,
         ..RunOptions::default()
     };
-    Ok(Setup {
+    Setup {
         files,
         reader,
         run,
         declination_rad: alignment.declination_rad,
         inclination_rad,
         imu_rate_hz,
+        gps_rate_hz,
         imu_noise,
-    })
+        accel_bias_random_walk: args
+            .accel_bias_random_walk
+            .unwrap_or(defaults.accel_bias_random_walk),
+        gps_accuracy,
+        derived,
+        quiet: args.quiet,
+        nav: NavConfig::default(),
+    }
+    .with_config_file(args.config.as_deref())
+}
+
+/// The derived values, one line each, as printed at the start of a replay.
+fn print_derived(setup: &Setup) {
+    let d = &setup.derived;
+    let num = |v: &Value, digits: usize| {
+        v.as_f64()
+            .map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
+    };
+    eprintln!("derived from the log (docs/replay.md, \"Defaults from the log\"):");
+    eprintln!(
+        "  rates: IMU {} Hz, GPS {} Hz, magnetometer {} Hz (median intervals)",
+        num(&d["imu_rate_hz"], 1),
+        num(&d["gps_rate_hz"], 2),
+        num(&d["mag_rate_hz"], 2)
+    );
+    let acc = &d["gps_accuracy_reported_median"];
+    if acc["horizontal_m"].is_null() && acc["speed_m_s"].is_null() {
+        eprintln!("  GPS accuracy: not reported by the log: the filters' defaults");
+    } else {
+        eprintln!(
+            "  GPS accuracy: reported per fix, median horizontal {} m, vertical {} m, speed {} m/s",
+            num(&acc["horizontal_m"], 2),
+            num(&acc["vertical_m"], 2),
+            num(&acc["speed_m_s"], 2)
+        );
+    }
+    for (label, key) in [
+        ("stationary segment", "stationary_segment"),
+        ("in flight", "in_flight"),
+    ] {
+        let m = &d[key];
+        if m.is_null() {
+            eprintln!("  {label}: none");
+            continue;
+        }
+        let axes = |k: &str, digits: usize| {
+            m[k].as_array()
+                .map(|a| {
+                    a.iter()
+                        .map(|v| num(v, digits))
+                        .collect::<Vec<_>>()
+                        .join("/")
+                })
+                .unwrap_or_default()
+        };
+        eprintln!(
+            "  {label} {}-{} s: accel {} m/s^2/sqrt(Hz), gyro {} rad/s/sqrt(Hz) (x/y/z)",
+            num(&m["from_s"], 1),
+            num(&m["to_s"], 1),
+            axes("accel_density_per_axis", 4),
+            axes("gyro_density_per_axis", 5)
+        );
+    }
+    eprintln!(
+        "  IMU noise used: accel {} ({}), gyro {} ({})",
+        num(&d["accel_noise_density"], 4),
+        d["accel_noise_source"].as_str().unwrap_or("-"),
+        num(&d["gyro_noise_density"], 5),
+        d["gyro_noise_source"].as_str().unwrap_or("-")
+    );
+    eprintln!(
+        "  declination {} deg ({}), inclination {} deg ({}); log date {}, first fix {}",
+        num(&d["declination_deg"], 2),
+        d["declination_source"].as_str().unwrap_or("-"),
+        num(&d["inclination_deg"], 2),
+        d["inclination_source"].as_str().unwrap_or("-"),
+        d["log_date"].as_str().unwrap_or("unknown"),
+        d["first_fix"].as_array().map_or_else(
+            || "none".to_string(),
+            |a| format!("{} {}", num(&a[0], 5), num(&a[1], 5))
+        )
+    );
 }
 
 fn chosen(name: &str) -> Result<Vec<&'static Registered>, Failure> {
@@ -502,6 +890,10 @@ fn run(mut args: Args) -> Result<(), Failure> {
     }
     let estimators = chosen(&args.estimator)?;
     let setup = setup(&args)?;
+    if args.print_config {
+        print!("{}", config_file::to_toml(&setup.nav)?);
+        return Ok(());
+    }
     let mut outputs = Outputs {
         estimates: match &args.out {
             Some(p) => Some(EstimateWriter::new(BufWriter::new(File::create(p)?))?),
@@ -537,6 +929,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
         setup.run.alignment.trim_pitch_rad,
     );
     eprint!("{skips}");
+    print_derived(&setup);
 
     let mut summaries = Vec::new();
     println!(
@@ -544,7 +937,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
         "estimator", "delay_s", "roll_deg", "pitch_deg", "yaw_deg", "vel_m_s", "refused", "nonfin"
     );
     for r in estimators {
-        let s = (r.run)(&setup, &mut outputs)?;
+        let (s, health) = (r.run)(&setup, &mut outputs)?;
         let rms = s.reference_rms;
         println!(
             "{:<9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8}",
@@ -557,7 +950,12 @@ fn run(mut args: Args) -> Result<(), Failure> {
             s.samples_refused(),
             s.non_finite_estimates,
         );
-        summaries.push((r, s));
+        summaries.push((r, s, health));
+    }
+    println!();
+    println!("health at the end of the replay (docs/replay.md, \"Health summary\"):");
+    for (r, _, health) in &summaries {
+        health.print(r.name);
     }
     if let Some(w) = outputs.estimates.as_mut() {
         w.flush()?;
@@ -582,12 +980,14 @@ fn run(mut args: Args) -> Result<(), Failure> {
             "imu_rate_hz": setup.imu_rate_hz,
             "accel_noise_density": setup.imu_noise.accel_noise_density,
             "gyro_noise_density": setup.imu_noise.gyro_noise_density,
-            "accel_bias_random_walk": setup.imu_noise.accel_bias_random_walk,
+            "accel_bias_random_walk": setup.accel_bias_random_walk,
             "trim_roll_rad": setup.run.alignment.trim_roll_rad,
             "trim_pitch_rad": setup.run.alignment.trim_pitch_rad,
-            "estimators": summaries.iter().map(|(r, s)| {
+            "derived": setup.derived,
+            "estimators": summaries.iter().map(|(r, s, health)| {
                 let mut v = summary_json(r.name, s, &skips);
                 v["about"] = json!(r.about);
+                v["health"] = health.json();
                 v
             }).collect::<Vec<_>>(),
         });
@@ -598,7 +998,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
         std::fs::create_dir_all(dir)?;
         let tracks: Vec<_> = summaries
             .iter()
-            .map(|(r, s)| (r.name, s.delay_track.as_slice()))
+            .map(|(r, s, _)| (r.name, s.delay_track.as_slice()))
             .collect();
         plots::delay(&dir.join("delay.svg"), &tracks)?;
         let reference = ReferenceReader::open(&setup.files)?.map(|refs| {

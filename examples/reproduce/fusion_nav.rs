@@ -24,6 +24,7 @@ use fusion_nav::prelude as fnav;
 use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector3};
 
 /// `fusion_nav::Eskf` fed like a delaynav estimator.
+#[derive(Clone)]
 pub struct FusionNav {
     filter: fnav::Eskf,
     window: fnav::StaticWindow,
@@ -119,7 +120,8 @@ impl<T: Scalar> Navigator<T> for FusionNav {
         let GpsPosition::Ned(p) = gps.position() else {
             return Err(Error::InvalidConfig {
                 field: "gps.position",
-                reason: "the fusion-nav row takes NED fixes",
+                value: None,
+                bound: delaynav::error::Bound::Rule("the fusion-nav row takes NED fixes"),
             });
         };
         let time = self.taken(gps.time_us());

@@ -69,10 +69,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 mod fusion_nav;
+mod plots;
 mod stats;
 mod sweep;
 
 use fusion_nav::FusionNav;
+use plots::{COLORS, Panel, Series, TRUTH_COLOR};
 
 /// Window of GPS fixes over which the delay bound counts information, µs.
 const DELAY_BOUND_WINDOW_US: u64 = 5_000_000;
@@ -1285,147 +1287,8 @@ fn to_json(results: &[ScenarioResult], seeds: &[u64], duration_s: f64, skip_s: f
     })
 }
 
-/// One line of a plot.
-struct Series<'a> {
-    name: &'a str,
-    color: &'static str,
-    x: &'a [f64],
-    y: Vec<f64>,
-}
-
-/// One panel of a stacked plot.
-struct Panel<'a> {
-    title: String,
-    series: Vec<Series<'a>>,
-}
-
-/// Line colours: the truth, then the estimators in registry order.
-const TRUTH_COLOR: &str = "#000000";
-const COLORS: [&str; 8] = [
-    "#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
-];
-
-/// A minimal SVG line plot: stacked panels sharing the time axis.
-fn svg_panels(title: &str, panels: &[Panel]) -> String {
-    let panels: Vec<&Panel> = panels.iter().filter(|p| !p.series.is_empty()).collect();
-    let (width, panel_h, left, top, gap) = (900.0, 200.0, 70.0, 40.0, 50.0);
-    let plot_w = width - left - 160.0;
-    let height = top + panels.len() as f64 * (panel_h + gap);
-    let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(
-        svg,
-        r#"<text x="{left}" y="20" font-size="15">{title}</text>"#
-    );
-    for (p, panel) in panels.iter().enumerate() {
-        let y0 = top + p as f64 * (panel_h + gap);
-        let points = || {
-            panel
-                .series
-                .iter()
-                .flat_map(|s| s.x.iter().zip(&s.y))
-                .filter(|(_, y)| y.is_finite())
-        };
-        let (mut x_min, mut x_max, mut y_min, mut y_max) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for (x, y) in points() {
-            x_min = x_min.min(*x);
-            x_max = x_max.max(*x);
-            y_min = y_min.min(*y);
-            y_max = y_max.max(*y);
-        }
-        if x_min >= x_max {
-            continue;
-        }
-        if y_max - y_min < 1e-12 {
-            y_min -= 1.0;
-            y_max += 1.0;
-        }
-        let sx = |x: f64| left + (x - x_min) / (x_max - x_min) * plot_w;
-        let sy = |y: f64| y0 + panel_h - (y - y_min) / (y_max - y_min) * panel_h;
-        let _ = writeln!(
-            svg,
-            r##"<rect x="{left}" y="{y0}" width="{plot_w}" height="{panel_h}" fill="none" stroke="#888"/>"##
-        );
-        let _ = writeln!(
-            svg,
-            r#"<text x="{left}" y="{}">{}</text>"#,
-            y0 - 6.0,
-            panel.title
-        );
-        for (value, y) in [(y_max, y0 + 10.0), (y_min, y0 + panel_h)] {
-            let _ = writeln!(
-                svg,
-                r#"<text x="{}" y="{y}" text-anchor="end">{value:.3}</text>"#,
-                left - 4.0
-            );
-        }
-        if y_min < 0.0 && y_max > 0.0 {
-            let _ = writeln!(
-                svg,
-                r##"<line x1="{left}" x2="{0}" y1="{1}" y2="{1}" stroke="#ccc"/>"##,
-                left + plot_w,
-                sy(0.0)
-            );
-        }
-        let _ = writeln!(
-            svg,
-            r#"<text x="{left}" y="{0}">{x_min:.0} s</text><text x="{1}" y="{0}" text-anchor="end">{x_max:.0} s</text>"#,
-            y0 + panel_h + 14.0,
-            left + plot_w
-        );
-        // A tick every 5 s.
-        let mut tick = (x_min / 5.0).ceil() * 5.0;
-        while tick <= x_max {
-            let _ = writeln!(
-                svg,
-                r##"<line x1="{0}" x2="{0}" y1="{1}" y2="{2}" stroke="#888"/>"##,
-                sx(tick),
-                y0 + panel_h,
-                y0 + panel_h + 5.0
-            );
-            tick += 5.0;
-        }
-        for (i, s) in panel.series.iter().enumerate() {
-            let color = s.color;
-            let mut d = String::new();
-            let mut pen_down = false;
-            for (x, y) in s.x.iter().zip(&s.y) {
-                if y.is_finite() {
-                    let _ = write!(
-                        d,
-                        "{}{:.1},{:.1} ",
-                        if pen_down { "L" } else { "M" },
-                        sx(*x),
-                        sy(*y)
-                    );
-                    pen_down = true;
-                } else {
-                    pen_down = false;
-                }
-            }
-            let _ = writeln!(
-                svg,
-                r#"<path d="{d}" fill="none" stroke="{color}" stroke-width="1"/>"#
-            );
-            let _ = writeln!(
-                svg,
-                r#"<text x="{}" y="{}" fill="{color}">{}</text>"#,
-                left + plot_w + 10.0,
-                y0 + 14.0 + 16.0 * i as f64,
-                s.name
-            );
-        }
-    }
-    svg.push_str("</svg>\n");
-    svg
-}
-
 /// Figures 5 and 6: true and estimated pitch, attitude errors, delay estimate.
-fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> {
+fn write_plots(dir: &Path, r: &ScenarioResult) -> Result<Vec<PathBuf>, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(dir)?;
     let truth_t: Vec<f64> = r.truth_trace.iter().map(|p| p.0).collect();
     let mut pitch = Panel {
@@ -1484,10 +1347,10 @@ fn write_plots(dir: &Path, r: &ScenarioResult) -> std::io::Result<Vec<PathBuf>> 
     let mut panels = vec![pitch];
     panels.extend(errors);
     let title = format!("scenario {name}: attitude (first seed)");
-    std::fs::write(&attitude_path, svg_panels(&title, &panels))?;
+    plots::panels(&attitude_path, &title, &panels)?;
     let delay_path = dir.join(format!("{name}-delay.svg"));
     let title = format!("scenario {name}: GPS delay (first seed)");
-    std::fs::write(&delay_path, svg_panels(&title, &[delay]))?;
+    plots::panels(&delay_path, &title, &[delay])?;
     Ok(vec![attitude_path, delay_path])
 }
 

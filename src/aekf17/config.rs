@@ -17,12 +17,13 @@
 //! [`aekf17`](super) for why the raw sample biases `tau` toward zero).
 
 use crate::ekf16::Ekf16Config;
-use crate::error::Error;
+use crate::error::{Error, check};
 use crate::scalar::Scalar;
 
 /// Configuration of [`AugmentedEkf17`](super::AugmentedEkf17).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct Aekf17Config<T: Scalar> {
     /// The navigation filter shared with [`Ekf16`](crate::Ekf16).
     pub nav: Ekf16Config<T>,
@@ -63,43 +64,19 @@ impl<T: Scalar> Aekf17Config<T> {
     }
 
     /// Checks every field (the navigation part first); the first offending
-    /// one is named in the error.
+    /// one is named in the error with its value and bound.
     pub fn validate(&self) -> Result<(), Error> {
         self.nav.validate()?;
-        let finite_positive = |v: T| v.is_finite() && v > T::zero();
-        if !finite_positive(self.max_delay_s) {
-            return Err(Error::InvalidConfig {
-                field: "max_delay_s",
-                reason: "must be finite and positive",
-            });
-        }
-        if !(self.initial_delay_s.is_finite()
-            && self.initial_delay_s >= T::zero()
-            && self.initial_delay_s <= self.max_delay_s)
-        {
-            return Err(Error::InvalidConfig {
-                field: "initial_delay_s",
-                reason: "must lie in [0, max_delay_s]",
-            });
-        }
-        if !finite_positive(self.initial_delay_std_s) {
-            return Err(Error::InvalidConfig {
-                field: "initial_delay_std_s",
-                reason: "must be finite and positive",
-            });
-        }
-        if !(self.delay_random_walk.is_finite() && self.delay_random_walk >= T::zero()) {
-            return Err(Error::InvalidConfig {
-                field: "delay_random_walk",
-                reason: "must be finite and not negative",
-            });
-        }
-        if !(self.accel_smoothing_s.is_finite() && self.accel_smoothing_s >= T::zero()) {
-            return Err(Error::InvalidConfig {
-                field: "accel_smoothing_s",
-                reason: "must be finite and not negative",
-            });
-        }
+        check::positive_finite("max_delay_s", self.max_delay_s)?;
+        check::within(
+            "initial_delay_s",
+            self.initial_delay_s,
+            T::zero(),
+            self.max_delay_s,
+        )?;
+        check::positive_finite("initial_delay_std_s", self.initial_delay_std_s)?;
+        check::not_negative("delay_random_walk", self.delay_random_walk)?;
+        check::not_negative("accel_smoothing_s", self.accel_smoothing_s)?;
         Ok(())
     }
 }

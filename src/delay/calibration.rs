@@ -34,11 +34,10 @@ use nalgebra::{UnitQuaternion, Vector3};
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::gain_fusion::AXES;
 use super::grid::{
-    GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
-    non_negative_finite, positive_finite, validate_grid,
+    GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples, validate_grid,
 };
 use super::ring::Ring;
-use crate::error::Error;
+use crate::error::{Bound, Error, check};
 use crate::geo::{
     quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix,
 };
@@ -48,6 +47,7 @@ use crate::sensors::{GpsFix, ImuSample, checked_gps, checked_imu};
 /// Configuration of the offline calibration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct CalibrationConfig<T: Scalar> {
     /// Rate of the correlation grid, Hz.
     pub correlation_rate_hz: T,
@@ -89,16 +89,10 @@ impl<T: Scalar> CalibrationConfig<T> {
         let extent = ("max_shift_s", self.max_shift_s);
         let rate = self.correlation_rate_hz;
         validate_grid(rate, self.gps_diff_span, self.smoothing_cutoff_hz, extent)?;
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
-        if !non_negative_finite(self.tilt_gain_per_s) {
-            return bad("tilt_gain_per_s", "must be finite and >= 0");
-        }
-        if !(positive_finite(self.gravity_m_s2) && positive_finite(self.max_gap_s)) {
-            return bad("gravity_m_s2/max_gap_s", "must be positive and finite");
-        }
-        if self.min_pairs < 3 {
-            return bad("min_pairs", "must be at least 3");
-        }
+        check::not_negative("tilt_gain_per_s", self.tilt_gain_per_s)?;
+        check::positive_finite("gravity_m_s2", self.gravity_m_s2)?;
+        check::positive_finite("max_gap_s", self.max_gap_s)?;
+        check::count_at_least("min_pairs", self.min_pairs as u64, 3)?;
         Ok(())
     }
 }
@@ -288,10 +282,11 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         let period_us = grid_period_us(config.correlation_rate_hz);
         let max_shift = grid_samples(config.max_shift_s, period_us);
         if 2 * max_shift + 1 > SHIFTS {
-            return Err(Error::InvalidConfig {
-                field: "max_shift_s",
-                reason: "2 S + 1 shifts exceed the capacity SHIFTS",
-            });
+            return Err(check::invalid(
+                "max_shift_s",
+                config.max_shift_s,
+                Bound::Rule("2 S + 1 shifts exceed the capacity SHIFTS"),
+            ));
         }
         let lead = lead_samples(
             config.gps_diff_span,
@@ -302,7 +297,8 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         if max_shift + lead >= HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",
-                reason: "history too short for the largest shift plus the GPS lead",
+                value: Some(HIST as f64),
+                bound: Bound::Above((max_shift + lead) as f64),
             });
         }
         Ok(Self {

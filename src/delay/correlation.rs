@@ -175,19 +175,22 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if !(2..=BUF).contains(&buffer_len) {
             return Err(Error::InvalidConfig {
                 field: "correlation.buffer",
-                reason: "buffer must hold 2 to BUF grid samples",
+                value: None,
+                bound: crate::error::Bound::Rule("buffer must hold 2 to BUF grid samples"),
             });
         }
         if !(3..=LAGS).contains(&lags) {
             return Err(Error::InvalidConfig {
                 field: "correlation.shift_window",
-                reason: "shift window must hold 3 to LAGS grid samples",
+                value: None,
+                bound: crate::error::Bound::Rule("shift window must hold 3 to LAGS grid samples"),
             });
         }
         if buffer_len + shift_min + lags > HIST {
             return Err(Error::InvalidConfig {
                 field: "correlation.history",
-                reason: "HIST must exceed buffer + largest shift",
+                value: None,
+                bound: crate::error::Bound::Rule("HIST must exceed buffer + largest shift"),
             });
         }
         Ok(Self {

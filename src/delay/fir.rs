@@ -49,7 +49,8 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
         if !(sample_rate_hz.is_finite() && sample_rate_hz > T::zero()) {
             return Err(Error::InvalidConfig {
                 field: "fir.sample_rate_hz",
-                reason: "must be positive and finite",
+                value: None,
+                bound: crate::error::Bound::Rule("must be positive and finite"),
             });
         }
         if !(cutoff_hz.is_finite()
@@ -58,7 +59,8 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
         {
             return Err(Error::InvalidConfig {
                 field: "fir.cutoff_hz",
-                reason: "must be positive and below half the sample rate",
+                value: None,
+                bound: crate::error::Bound::Rule("must be positive and below half the sample rate"),
             });
         }
         let fc = (cutoff_hz / sample_rate_hz).as_f64();
@@ -103,7 +105,8 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
         if (0..TAPS / 2).any(|i| (coefficients[i] - coefficients[TAPS - 1 - i]).abs() > tolerance) {
             return Err(Error::InvalidConfig {
                 field: "fir.coefficients",
-                reason: "must be symmetric (linear phase)",
+                value: None,
+                bound: crate::error::Bound::Rule("must be symmetric (linear phase)"),
             });
         }
         Ok(Self::with(coefficients))

@@ -36,6 +36,7 @@ pub const AXES: usize = 3;
 /// Configuration of the gain fusion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct GainFusionConfig<T: Scalar> {
     /// Gain weight `gamma` (1/3: the three axes weigh the same).
     pub gamma: T,
@@ -64,7 +65,13 @@ impl<T: Scalar> Default for GainFusionConfig<T> {
 impl<T: Scalar> GainFusionConfig<T> {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+        let bad = |field, reason| {
+            Err(Error::InvalidConfig {
+                field,
+                value: None,
+                bound: crate::error::Bound::Rule(reason),
+            })
+        };
         if !(positive_finite(self.gamma) && self.gamma <= T::one()) {
             return bad("gfa.gamma", "must be in (0, 1]");
         }

@@ -316,7 +316,13 @@ pub(crate) fn validate_grid<T: Scalar>(
     smoothing_cutoff_hz: T,
     (extent_field, extent_s): (&'static str, T),
 ) -> Result<(), Error> {
-    let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+    let bad = |field, reason| {
+        Err(Error::InvalidConfig {
+            field,
+            value: None,
+            bound: crate::error::Bound::Rule(reason),
+        })
+    };
     if !positive_finite(extent_s) {
         return bad(extent_field, "must be positive and finite");
     }

@@ -101,8 +101,9 @@ use grid::{
 };
 
 /// Per-sensor pure delays of eq. (15), seconds.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct SensorDelays<T: Scalar> {
     /// Delay applied to the whitened accelerometer: `tau_f`.
     pub accel_s: T,
@@ -149,6 +150,7 @@ impl<T: Scalar> SensorDelays<T> {
 /// [`reference_accel_variance_m2_s4`](Self::reference_accel_variance_m2_s4)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct DelayLoopConfig<T: Scalar> {
     /// Rate of the correlation grid, Hz (its period is rounded to whole
     /// microseconds).
@@ -287,7 +289,13 @@ impl<T: Scalar> DelayLoopConfig<T> {
     }
 
     fn sizes(&self) -> Result<GridSizes, Error> {
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
+        let bad = |field, reason| {
+            Err(Error::InvalidConfig {
+                field,
+                value: None,
+                bound: crate::error::Bound::Rule(reason),
+            })
+        };
         let positive = positive_finite::<T>;
         validate_grid(
             self.correlation_rate_hz,
@@ -540,7 +548,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead > HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",
-                reason: "IMU history too short for buffer + largest shift + GPS lead",
+                value: Some(HIST as f64),
+                // The buffer, the largest shift and the GPS lead.
+                bound: crate::error::Bound::AtLeast(
+                    (sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead) as f64,
+                ),
             });
         }
         Ok(Self {

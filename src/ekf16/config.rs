@@ -18,7 +18,7 @@
 //! 0.0017 (rad/s)², accelerometer 0.01 g² per sample, GPS position 4 m²,
 //! velocity 0.1 (m/s)², magnetometer 0.02 (unit field).
 
-use crate::error::Error;
+use crate::error::{Bound, Error, check};
 use crate::kalman::GATE_5_SIGMA_3DOF;
 use crate::scalar::Scalar;
 use crate::sensors::Geodetic;
@@ -61,6 +61,7 @@ pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
 /// Everything the 16-state EKF needs to know that is not a sensor sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct Ekf16Config<T: Scalar> {
     /// Gravity magnitude, m/s^2 (NED: `[0, 0, +g]`).
     pub gravity_m_s2: T,
@@ -178,9 +179,17 @@ pub struct Ekf16Config<T: Scalar> {
     pub initial_position_std_m: T,
     /// Initial velocity standard deviation per axis, m/s.
     pub initial_velocity_std_m_s: T,
-    /// Initial accelerometer-bias standard deviation per axis, m/s^2.
+    /// Initial accelerometer-bias estimate, body FRD, m/s^2 (a calibrated
+    /// IMU; default zero). Subtracted from the accelerometer mean the
+    /// initial roll and pitch come from.
+    pub initial_accel_bias_m_s2: Vector3<T>,
+    /// Initial accelerometer-bias standard deviation per axis, m/s^2: the
+    /// uncertainty of [`initial_accel_bias_m_s2`](Self::initial_accel_bias_m_s2).
     pub initial_accel_bias_std_m_s2: T,
-    /// Initial gyro-bias standard deviation per axis, rad/s.
+    /// Initial gyro-bias estimate, body FRD, rad/s (default zero).
+    pub initial_gyro_bias_rad_s: Vector3<T>,
+    /// Initial gyro-bias standard deviation per axis, rad/s: the uncertainty
+    /// of [`initial_gyro_bias_rad_s`](Self::initial_gyro_bias_rad_s).
     pub initial_gyro_bias_std_rad_s: T,
 }
 
@@ -224,7 +233,9 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             initial_yaw_std_no_mag_rad: T::lit(0.5),
             initial_position_std_m: T::lit(5.0),
             initial_velocity_std_m_s: T::lit(1.0),
+            initial_accel_bias_m_s2: Vector3::zeros(),
             initial_accel_bias_std_m_s2: T::lit(0.1 * g),
+            initial_gyro_bias_rad_s: Vector3::zeros(),
             initial_gyro_bias_std_rad_s: T::lit(0.01),
         }
     }
@@ -247,139 +258,113 @@ impl<T: Scalar> Ekf16Config<T> {
         }
     }
 
-    /// Checks every field; the first offending one is named in the error.
+    /// Checks every field; the first offending one is named in the error
+    /// with its value and the bound it broke.
     pub fn validate(&self) -> Result<(), Error> {
-        let positive: [(T, &'static str); 24] = [
-            (self.gravity_m_s2, "gravity_m_s2"),
-            (self.gyro_noise_density, "gyro_noise_density"),
-            (self.accel_noise_density, "accel_noise_density"),
-            (self.gps_horizontal_std_m, "gps_horizontal_std_m"),
-            (self.gps_vertical_std_m, "gps_vertical_std_m"),
-            (self.gps_velocity_std_m_s, "gps_velocity_std_m_s"),
-            (self.mag_noise_variance, "mag_noise_variance"),
-            (self.gps_position_gate, "gps_position_gate"),
-            (self.gps_velocity_gate, "gps_velocity_gate"),
-            (self.mag_gate, "mag_gate"),
+        // Densities, standard deviations and limits: positive and finite.
+        for (field, v) in [
+            ("gravity_m_s2", self.gravity_m_s2),
+            ("gyro_noise_density", self.gyro_noise_density),
+            ("accel_noise_density", self.accel_noise_density),
+            ("gps_horizontal_std_m", self.gps_horizontal_std_m),
+            ("gps_vertical_std_m", self.gps_vertical_std_m),
+            ("gps_velocity_std_m_s", self.gps_velocity_std_m_s),
+            ("mag_noise_variance", self.mag_noise_variance),
+            ("mag_field_learning_rate", self.mag_field_learning_rate),
+            ("max_gyro_rad_s", self.max_gyro_rad_s),
+            ("max_accel_m_s2", self.max_accel_m_s2),
+            ("initial_position_std_m", self.initial_position_std_m),
+            ("initial_velocity_std_m_s", self.initial_velocity_std_m_s),
             (
-                self.mag_tilt_alignment_std_rad,
-                "mag_tilt_alignment_std_rad",
-            ),
-            (self.mag_norm_tolerance, "mag_norm_tolerance"),
-            (
-                self.mag_inclination_tolerance_rad,
-                "mag_inclination_tolerance_rad",
-            ),
-            (self.mag_field_learning_rate, "mag_field_learning_rate"),
-            (self.gps_nis_bound, "gps_nis_bound"),
-            (self.max_gyro_rad_s, "max_gyro_rad_s"),
-            (self.max_accel_m_s2, "max_accel_m_s2"),
-            (self.initial_tilt_std_rad, "initial_tilt_std_rad"),
-            (self.initial_yaw_std_rad, "initial_yaw_std_rad"),
-            (
-                self.initial_yaw_std_no_mag_rad,
-                "initial_yaw_std_no_mag_rad",
-            ),
-            (self.initial_position_std_m, "initial_position_std_m"),
-            (self.initial_velocity_std_m_s, "initial_velocity_std_m_s"),
-            (
-                self.initial_accel_bias_std_m_s2,
                 "initial_accel_bias_std_m_s2",
+                self.initial_accel_bias_std_m_s2,
             ),
             (
-                self.initial_gyro_bias_std_rad_s,
                 "initial_gyro_bias_std_rad_s",
+                self.initial_gyro_bias_std_rad_s,
             ),
-        ];
-        for (v, field) in positive {
-            // `!(v > 0)` also catches NaN. Gates, tolerances and the NIS
-            // bound may be +inf (no check).
-            if v.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
-                return Err(Error::InvalidConfig {
-                    field,
-                    reason: "must be positive",
-                });
-            }
-            let may_be_inf = ["gate", "tolerance", "tolerance_rad", "bound", "std_rad"]
-                .iter()
-                .any(|e| field.ends_with(e));
-            if !may_be_inf && !v.is_finite() {
-                return Err(Error::InvalidConfig {
-                    field,
-                    reason: "must be finite",
-                });
-            }
-        }
-        for (v, field) in [
-            (self.gyro_bias_random_walk, "gyro_bias_random_walk"),
-            (self.accel_bias_random_walk, "accel_bias_random_walk"),
         ] {
-            if !v.is_finite() || v < T::zero() {
-                return Err(Error::InvalidConfig {
-                    field,
-                    reason: "must be finite and not negative",
-                });
-            }
+            check::positive_finite(field, v)?;
         }
-        if !self.lever_arm_m.iter().all(|v| v.is_finite()) {
-            return Err(Error::InvalidConfig {
-                field: "lever_arm_m",
-                reason: "must be finite",
-            });
-        }
-        for (v, field) in [
-            (self.mag_inclination_rad, "mag_inclination_rad"),
-            (self.mag_declination_rad, "mag_declination_rad"),
+        // Gates, tolerances, the NIS bound and the attitude standard
+        // deviations: positive, +inf allowed (no check).
+        for (field, v) in [
+            ("gps_position_gate", self.gps_position_gate),
+            ("gps_velocity_gate", self.gps_velocity_gate),
+            ("mag_gate", self.mag_gate),
+            (
+                "mag_tilt_alignment_std_rad",
+                self.mag_tilt_alignment_std_rad,
+            ),
+            ("mag_norm_tolerance", self.mag_norm_tolerance),
+            (
+                "mag_inclination_tolerance_rad",
+                self.mag_inclination_tolerance_rad,
+            ),
+            ("gps_nis_bound", self.gps_nis_bound),
+            ("initial_tilt_std_rad", self.initial_tilt_std_rad),
+            ("initial_yaw_std_rad", self.initial_yaw_std_rad),
+            (
+                "initial_yaw_std_no_mag_rad",
+                self.initial_yaw_std_no_mag_rad,
+            ),
         ] {
-            if !v.is_finite() || v.abs() > T::pi() {
-                return Err(Error::InvalidConfig {
-                    field,
-                    reason: "must be finite radians in [-pi, pi]",
-                });
-            }
+            check::positive(field, v)?;
         }
-        if self.mag_inclination_rad.abs() >= T::frac_pi_2() {
-            return Err(Error::InvalidConfig {
-                field: "mag_inclination_rad",
-                reason: "a vertical field has no heading: |inclination| must be below pi/2",
-            });
+        check::not_negative("gyro_bias_random_walk", self.gyro_bias_random_walk)?;
+        check::not_negative("accel_bias_random_walk", self.accel_bias_random_walk)?;
+        for (field, v) in [
+            ("lever_arm_m.x", self.lever_arm_m.x),
+            ("lever_arm_m.y", self.lever_arm_m.y),
+            ("lever_arm_m.z", self.lever_arm_m.z),
+            ("initial_gyro_bias_rad_s.x", self.initial_gyro_bias_rad_s.x),
+            ("initial_gyro_bias_rad_s.y", self.initial_gyro_bias_rad_s.y),
+            ("initial_gyro_bias_rad_s.z", self.initial_gyro_bias_rad_s.z),
+        ] {
+            check::finite(field, v)?;
         }
-        if self.mag_field_learning_rate > T::one() {
-            return Err(Error::InvalidConfig {
-                field: "mag_field_learning_rate",
-                reason: "must be at most 1",
-            });
+        // A bias beyond the plausible sample is not a bias.
+        for (field, v) in [
+            ("initial_accel_bias_m_s2.x", self.initial_accel_bias_m_s2.x),
+            ("initial_accel_bias_m_s2.y", self.initial_accel_bias_m_s2.y),
+            ("initial_accel_bias_m_s2.z", self.initial_accel_bias_m_s2.z),
+        ] {
+            check::within(field, v, -self.max_accel_m_s2, self.max_accel_m_s2)?;
         }
-        if self.max_imu_step_us == 0 {
-            return Err(Error::InvalidConfig {
-                field: "max_imu_step_us",
-                reason: "must be positive",
-            });
+        check::within(
+            "mag_declination_rad",
+            self.mag_declination_rad,
+            -T::pi(),
+            T::pi(),
+        )?;
+        // A vertical field has no heading.
+        let has_heading = self.mag_inclination_rad.abs() < T::frac_pi_2();
+        if !has_heading {
+            return Err(check::invalid(
+                "mag_inclination_rad",
+                self.mag_inclination_rad,
+                Bound::Rule("|inclination| must be below pi/2 (a vertical field has no heading)"),
+            ));
         }
-        if self.align_window == 0 {
-            return Err(Error::InvalidConfig {
-                field: "align_window",
-                reason: "must be at least 1",
-            });
-        }
-        if self.align_min_samples == 0 {
-            return Err(Error::InvalidConfig {
-                field: "align_min_samples",
-                reason: "must be at least 1",
-            });
-        }
+        check::at_most(
+            "mag_field_learning_rate",
+            self.mag_field_learning_rate,
+            T::one(),
+        )?;
+        check::count_at_least("max_imu_step_us", self.max_imu_step_us, 1)?;
+        check::count_at_least("align_window", self.align_window.into(), 1)?;
+        check::count_at_least("align_min_samples", self.align_min_samples.into(), 1)?;
         if self.align_min_samples > self.align_window {
             return Err(Error::InvalidConfig {
                 field: "align_min_samples",
-                reason: "must not exceed align_window",
+                value: Some(f64::from(self.align_min_samples)),
+                bound: Bound::AtMost(f64::from(self.align_window)),
             });
         }
-        if let Some(o) = self.origin
-            && !o.is_valid()
-        {
-            return Err(Error::InvalidConfig {
-                field: "origin",
-                reason: "latitude/longitude/height must be finite and in range",
-            });
+        if let Some(o) = self.origin {
+            check::within("origin.lat_deg", o.lat_deg, -90.0, 90.0)?;
+            check::within("origin.lon_deg", o.lon_deg, -360.0, 360.0)?;
+            check::finite("origin.alt_m", o.alt_m)?;
         }
         Ok(())
     }

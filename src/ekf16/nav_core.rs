@@ -322,7 +322,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if extras.len() != N - NAV_STATES {
             return Err(Error::InvalidConfig {
                 field: "extra_states",
-                reason: "one description per state beyond the 16 navigation states",
+                value: None,
+                bound: crate::error::Bound::Rule(
+                    "one description per state beyond the 16 navigation states",
+                ),
             });
         }
         let mut core = Self {
@@ -359,7 +362,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             if !ok {
                 return Err(Error::InvalidConfig {
                     field: "extra_states",
-                    reason: "values must be finite, variances and intensities not negative",
+                    value: None,
+                    bound: crate::error::Bound::Rule(
+                        "values must be finite, variances and intensities not negative",
+                    ),
                 });
             }
             core.extra_initial[NAV_STATES + i] = e.initial;
@@ -387,7 +393,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !all_finite(p) || (0..N).any(|i| p[(i, i)] < T::zero()) {
             return Err(Error::InvalidConfig {
                 field: "initial covariance",
-                reason: "must be finite with a non-negative diagonal",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite with a non-negative diagonal"),
             });
         }
         let norm = quaternion_of(x).norm();
@@ -691,7 +698,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// magnetometer direction and a GPS fix.
     fn initialize(&mut self, fix: &GpsMeasurement<T>) -> Result<(), Error> {
         let c = self.config;
-        let (roll, pitch) = roll_pitch_from_accel(&self.accel_mean.mean);
+        let (roll, pitch) =
+            roll_pitch_from_accel(&(self.accel_mean.mean - c.initial_accel_bias_m_s2));
         let (yaw, yaw_std) = match self.mag_mean.count {
             1.. => (
                 tilt_compensated_heading(&self.mag_mean.mean, roll, pitch, c.mag_declination_rad),
@@ -706,7 +714,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             let inclination = field_inclination(&rot, &self.mag_mean.mean);
             self.mag_field = Some((norm, inclination));
         }
-        let gyro = self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+        let gyro =
+            self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s) - c.initial_gyro_bias_rad_s;
         let mut x = self.extra_initial;
         x.fixed_rows_mut::<4>(QUAT)
             .copy_from(&q.quaternion().coords_wxyz());
@@ -714,6 +723,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             .copy_from(&(fix.position_ned_m - rot * c.lever_arm_m));
         x.fixed_rows_mut::<3>(VEL)
             .copy_from(&(fix.velocity_ned_m_s - rot * gyro.cross(&c.lever_arm_m)));
+        x.fixed_rows_mut::<3>(ACCEL_BIAS)
+            .copy_from(&c.initial_accel_bias_m_s2);
+        x.fixed_rows_mut::<3>(GYRO_BIAS)
+            .copy_from(&c.initial_gyro_bias_rad_s);
         let mut p = SMatrix::<T, N, N>::from_diagonal(&self.extra_variance);
         p.fixed_view_mut::<4, 4>(QUAT, QUAT)
             .copy_from(&attitude_covariance(

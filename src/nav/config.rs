@@ -2,7 +2,7 @@
 
 use crate::delay::DelayLoopConfig;
 use crate::ekf16::Ekf16Config;
-use crate::error::Error;
+use crate::error::{Bound, Error, check};
 use crate::scalar::Scalar;
 
 /// Taps of the low-pass whitening FIR when one is configured: group delay
@@ -23,11 +23,14 @@ pub const NAV_MIN_PEAK: f64 = 0.9;
 /// How the GPS delay is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub enum DelayMode<T: Scalar> {
     /// Estimated online by the delay loop (the paper's method), starting from
     /// `initial_s` (e.g. the offline calibration, sec. 2.2.2).
     Estimated {
-        /// Initial delay, s; replaces `delay_loop.fusion.initial_delay_s`.
+        /// Initial delay, s: the one place the start delay is set (the
+        /// navigator ignores `delay_loop.fusion.initial_delay_s`, see
+        /// [`NavConfig::loop_config`]).
         initial_s: T,
     },
     /// Known and constant (a calibrated receiver): the loop is off.
@@ -40,6 +43,7 @@ pub enum DelayMode<T: Scalar> {
 /// The noise-whitening filter of one IMU sensor (sec. 2.2.4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub enum WhiteningFilter<T: Scalar> {
     /// No filtering: one unit tap, zero group delay.
     PassThrough,
@@ -67,13 +71,24 @@ impl<T: Scalar> WhiteningFilter<T> {
 /// loop's validity thresholds ([`NAV_MIN_ACCEL_VARIANCE_M2_S4`],
 /// [`NAV_MIN_PEAK`]), delay estimated from 0.2 s, 1 kHz IMU, no whitening (see the module docs for
 /// why), and a horizon that catches up at most twice as fast as real time.
+///
+/// With the `serde` feature every config struct reads from a partial file
+/// (missing fields take their defaults) and refuses unknown fields by name.
+/// A nested table that is present starts from its own type's defaults: a
+/// `[delay_loop]` table gets [`DelayLoopConfig::default`]'s validity
+/// thresholds, not the navigator's [`NAV_MIN_ACCEL_VARIANCE_M2_S4`] and
+/// [`NAV_MIN_PEAK`]; set them in the table if you need them (the replay
+/// example merges a file over its own resolved config instead).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct NavConfig<T: Scalar> {
     /// The 16-state EKF run at the delayed horizon.
     pub ekf: Ekf16Config<T>,
     /// The delay loop (used in [`DelayMode::Estimated`]); its
-    /// `fusion.delay_min_s..=delay_max_s` bounds the delay in both modes.
+    /// `fusion.delay_min_s..=delay_max_s` bounds the delay in both modes. Its
+    /// `fusion.initial_delay_s` is not read: the start delay is the mode's
+    /// ([`NavConfig::loop_config`]).
     pub delay_loop: DelayLoopConfig<T>,
     /// Estimated or fixed delay.
     pub mode: DelayMode<T>,
@@ -118,62 +133,69 @@ impl<T: Scalar> Default for NavConfig<T> {
 
 impl<T: Scalar> NavConfig<T> {
     /// Checks every field (the history capacity is checked by
-    /// [`DelayCompensatedNav::new`](super::DelayCompensatedNav::new)).
+    /// [`DelayCompensatedNav::new`](super::DelayCompensatedNav::new)); the
+    /// first offending one is named in the error with its value and bound.
+    ///
+    /// The delay range `delay_loop.fusion.delay_min_s < delay_max_s` is
+    /// checked first, then the mode's delay against it; the rest of the loop
+    /// is checked as [`loop_config`](Self::loop_config) builds it, so its
+    /// `fusion.initial_delay_s` never matters.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |field, reason| Err(Error::InvalidConfig { field, reason });
         self.ekf.validate()?;
-        let mut loop_config = self.delay_loop;
         let (min, max) = (
-            loop_config.fusion.delay_min_s,
-            loop_config.fusion.delay_max_s,
+            self.delay_loop.fusion.delay_min_s,
+            self.delay_loop.fusion.delay_max_s,
         );
+        check::finite("delay_loop.fusion.delay_max_s", max)?;
+        if !(min.is_finite() && min < max) {
+            return Err(check::invalid(
+                "delay_loop.fusion.delay_min_s",
+                min,
+                Bound::Below(max.as_f64()),
+            ));
+        }
         match self.mode {
             DelayMode::Estimated { initial_s } => {
-                if !(initial_s.is_finite() && initial_s >= min && initial_s <= max) {
-                    return bad("mode.initial_s", "must lie in the delay range");
-                }
-                loop_config.fusion.initial_delay_s = initial_s;
+                check::within("mode.initial_s", initial_s, min, max)?;
             }
             DelayMode::Fixed { delay_s } => {
-                if !(delay_s.is_finite() && delay_s >= T::zero() && delay_s <= max) {
-                    return bad(
-                        "mode.delay_s",
-                        "must lie in [0, delay_loop.fusion.delay_max_s]",
-                    );
-                }
+                check::within("mode.delay_s", delay_s, T::zero(), max)?;
             }
         }
-        loop_config.validate()?;
-        if !(self.imu_rate_hz.is_finite() && self.imu_rate_hz > T::zero()) {
-            return bad("imu_rate_hz", "must be positive and finite");
-        }
+        self.loop_config().validate()?;
+        check::positive_finite("imu_rate_hz", self.imu_rate_hz)?;
         for (field, filter) in [
-            ("accel_whitening", self.accel_whitening),
-            ("gyro_whitening", self.gyro_whitening),
+            ("accel_whitening.cutoff_hz", self.accel_whitening),
+            ("gyro_whitening.cutoff_hz", self.gyro_whitening),
         ] {
-            if let WhiteningFilter::LowPass { cutoff_hz } = filter
-                && !(cutoff_hz.is_finite()
-                    && cutoff_hz > T::zero()
-                    && cutoff_hz < self.imu_rate_hz * T::lit(0.5))
-            {
-                return bad(field, "cutoff must be positive and below half the IMU rate");
+            if let WhiteningFilter::LowPass { cutoff_hz } = filter {
+                check::positive_finite(field, cutoff_hz)?;
+                check::below(field, cutoff_hz, self.imu_rate_hz * T::lit(0.5))?;
             }
         }
-        if !(self.max_horizon_step_ratio.is_finite() && self.max_horizon_step_ratio >= T::one()) {
-            return bad("max_horizon_step_ratio", "must be finite and >= 1");
-        }
-        if self.max_time_jump_us == 0 {
-            return bad("max_time_jump_us", "must be positive");
-        }
+        check::at_least(
+            "max_horizon_step_ratio",
+            self.max_horizon_step_ratio,
+            T::one(),
+        )?;
+        check::count_at_least("max_time_jump_us", self.max_time_jump_us, 1)?;
         Ok(())
     }
 
-    /// The delay loop's configuration with the mode's initial delay.
-    pub(crate) fn loop_config(&self) -> DelayLoopConfig<T> {
+    /// The delay loop's configuration as the navigator runs it: `delay_loop`
+    /// with `fusion.initial_delay_s` taken from the mode (the one place the
+    /// start delay is set). In [`DelayMode::Fixed`] the loop is off but still
+    /// built, starting at the fixed delay, so that a range that excludes the
+    /// loop's default start (e.g. a maximum below 0.2 s) is valid.
+    pub fn loop_config(&self) -> DelayLoopConfig<T> {
         let mut c = self.delay_loop;
-        if let DelayMode::Estimated { initial_s } = self.mode {
-            c.fusion.initial_delay_s = initial_s;
-        }
+        c.fusion.initial_delay_s = match self.mode {
+            DelayMode::Estimated { initial_s } => initial_s,
+            // Within the range whatever it is (`clamp` would panic on NaN).
+            DelayMode::Fixed { delay_s } => {
+                delay_s.max(c.fusion.delay_min_s).min(c.fusion.delay_max_s)
+            }
+        };
         c
     }
 }

@@ -355,7 +355,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         if needed > HIST as f64 {
             return Err(Error::InvalidConfig {
                 field: "HIST",
-                reason: "history too short for the largest delay at the IMU rate",
+                value: Some(HIST as f64),
+                // The largest delay at the IMU rate, with margins.
+                bound: crate::error::Bound::AtLeast(needed),
             });
         }
         Ok(Self {

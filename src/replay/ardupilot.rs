@@ -31,7 +31,6 @@ use super::{
     ReferenceAlignment, ReferenceSample, ReplayError, SensorEvent, SensorStreams, SkipCounts,
     SkipKind, named, require,
 };
-use crate::ekf16::Ekf16Config;
 use crate::geo::quaternion_from_euler;
 use crate::scalar::Scalar;
 use csv::StringRecord;
@@ -61,44 +60,6 @@ pub const LOG171_ALIGNMENT: ReferenceAlignment = ReferenceAlignment {
     trim_pitch_rad: 0.005_281_575_489_789_247_5,
     declination_rad: 11.8 * core::f64::consts::PI / 180.0,
 };
-
-/// log171's accelerometer noise density for the filters, m/s²/√Hz.
-///
-/// Measured in flight (100-200 s): the sample-to-sample differences of the
-/// 50 Hz logged specific force have a standard deviation of 0.23-0.27 m/s²
-/// per axis after the `1/√2` of a difference, a white density
-/// `σ / √f` of 0.033-0.038 m/s²/√Hz; on the ground with the motors off
-/// (50-70 s) only 0.0011-0.0016. Taken at 0.05 to cover what the 50 Hz
-/// samples do not resolve (vibration aliased into the 20 ms averages,
-/// sculling): with it the horizontal GPS velocity innovations of the
-/// delay-compensated navigator have a mean NIS of 0.7-0.9 per axis (1 is
-/// consistent). The paper's Table 3 (0.01 g² per 1 kHz sample) is
-/// 0.031 m/s²/√Hz, close to the flight's measured value, but the filters
-/// then also need the gyro below.
-pub const LOG171_ACCEL_NOISE_DENSITY: f64 = 0.05;
-
-/// log171's gyro noise density for the filters, rad/s/√Hz.
-///
-/// Measured in flight (100-200 s) on the yaw axis, the one with the least
-/// real motion in a 20 ms step: sample-to-sample differences of
-/// 0.028 rad/s, a white density of 0.004 rad/s/√Hz (roll and pitch read
-/// 0.031 and 0.0096, dominated by the vehicle's own rotation); on the ground
-/// 0.00005. Taken at 0.005. The paper's Table 3 (0.0017 (rad/s)² per 1 kHz
-/// sample, 0.0013 rad/s/√Hz) is four times smaller than what this vehicle's
-/// gyro shows in flight: with it the attitude became overconfident, the GPS
-/// gates rejected up to half the fixes, and the navigator's velocity
-/// diverged once fixes were rejected in a row.
-pub const LOG171_GYRO_NOISE_DENSITY: f64 = 0.005;
-
-/// `config` with log171's measured in-flight IMU noise
-/// ([`LOG171_ACCEL_NOISE_DENSITY`], [`LOG171_GYRO_NOISE_DENSITY`]).
-pub fn with_log171_imu_noise<T: Scalar>(config: Ekf16Config<T>) -> Ekf16Config<T> {
-    Ekf16Config {
-        accel_noise_density: T::lit(LOG171_ACCEL_NOISE_DENSITY),
-        gyro_noise_density: T::lit(LOG171_GYRO_NOISE_DENSITY),
-        ..config
-    }
-}
 
 pub(crate) fn locate(
     files: &[PathBuf],

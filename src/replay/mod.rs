@@ -44,14 +44,16 @@ mod table;
 pub mod ardupilot;
 pub mod crate_csv;
 pub mod dataflash;
+pub mod defaults;
 pub mod estimates_csv;
 pub mod px4;
 pub mod run;
 pub mod ulog;
 pub mod window;
 
+pub use defaults::{ImuNoise, LogDefaults, MagneticModel, NoiseSource, log_date, magnetic_model};
 pub use estimates_csv::EstimateWriter;
-pub use run::{ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
+pub use run::{FusionRecords, ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
 pub use window::{FlightWindow, flight_window};
 
 use crate::error::Error;

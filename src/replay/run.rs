@@ -18,7 +18,7 @@
 
 use super::{ReferenceAlignment, ReferenceSample, SensorEvent};
 use crate::error::Error;
-use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{euler_from_quaternion, wrap_pi};
 use crate::scalar::Scalar;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -82,6 +82,9 @@ pub struct RunSummary {
     pub gps_pushed: u64,
     /// Magnetometer samples pushed.
     pub mag_pushed: u64,
+    /// The fusion counts below come from the estimator's own records
+    /// ([`FusionRecords`]) when it keeps them, else from the push outcomes.
+    ///
     /// GPS fixes whose position block was fused (not rejected by the gate).
     pub gps_position_fused: u64,
     /// GPS fixes whose velocity block was fused.
@@ -130,6 +133,81 @@ impl RunSummary {
         if let MagOutcome::Fused(record) = outcome {
             self.mag_fused += u64::from(record.fused);
             self.mag_gated += u64::from(!record.fused);
+        }
+    }
+}
+
+/// The records an estimator keeps of its last GPS and magnetometer
+/// fusions. [`replay`] counts fusions from them, so a sample the estimator
+/// queues and fuses later (the delay-compensated navigator fuses the
+/// magnetometer at its delayed horizon) is counted when it is really fused
+/// or gated. An estimator without records (the defaults) is counted from
+/// the outcomes its push calls return.
+///
+/// One new record per stream is seen per pushed sample: a sample fused in
+/// the same call as another of its stream would be missed (not the case when
+/// the magnetometer and GPS rates are below the IMU rate).
+pub trait FusionRecords<T: Scalar> {
+    /// The last GPS fusion: (position, velocity).
+    fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+        None
+    }
+    /// The last magnetometer fusion.
+    fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+        None
+    }
+}
+
+macro_rules! records_of_filter {
+    ($($ty:ident),*) => {$(
+        impl<T: Scalar> FusionRecords<T> for crate::$ty<T> {
+            fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+                crate::$ty::last_gps_fusion(self)
+            }
+            fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+                crate::$ty::last_mag_fusion(self)
+            }
+        }
+    )*};
+}
+records_of_filter!(Ekf16, AugmentedEkf17);
+
+impl<T: Scalar> FusionRecords<T> for crate::DelayCompensatedNav<T> {
+    fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
+        self.horizon_filter().last_gps_fusion()
+    }
+    fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
+        self.horizon_filter().last_mag_fusion()
+    }
+}
+
+/// Fusions counted from an estimator's records, and the time of the last
+/// record seen per stream.
+#[derive(Default)]
+struct RecordTally {
+    seen: bool,
+    gps_us: Option<u64>,
+    mag_us: Option<u64>,
+    counts: RunSummary,
+}
+
+impl RecordTally {
+    fn observe<T: Scalar, N: FusionRecords<T>>(&mut self, nav: &N) {
+        if let Some((position, velocity)) = nav.last_gps_fusion() {
+            self.seen = true;
+            if self.gps_us.replace(position.t_us) != Some(position.t_us) {
+                let c = &mut self.counts;
+                c.gps_position_fused += u64::from(position.fused);
+                c.gps_velocity_fused += u64::from(velocity.fused);
+                c.gps_gated += u64::from(!(position.fused && velocity.fused));
+            }
+        }
+        if let Some(record) = nav.last_mag_fusion() {
+            self.seen = true;
+            if self.mag_us.replace(record.t_us) != Some(record.t_us) {
+                self.counts.mag_fused += u64::from(record.fused);
+                self.counts.mag_gated += u64::from(!record.fused);
+            }
         }
     }
 }
@@ -228,7 +306,7 @@ pub fn replay<T, N, E, R, F>(
 ) -> RunSummary
 where
     T: Scalar,
-    N: Navigator<T>,
+    N: Navigator<T> + FusionRecords<T>,
     E: IntoIterator<Item = SensorEvent<T>>,
     R: Iterator<Item = ReferenceSample>,
     F: FnMut(&Estimate<T>),
@@ -237,6 +315,10 @@ where
     let mut squares = Squares::default();
     let mut reference: Option<Peekable<R>> = reference.map(Iterator::peekable);
     let mut previous: Option<Snapshot> = None;
+    let mut records = RecordTally::default();
+    records.observe(nav);
+    // Records already there before the window (none for a new estimator).
+    records.counts = RunSummary::default();
     let mut next_track_us = 0;
     let start = options.start_us.unwrap_or(0);
     let end = options.end_us.unwrap_or(u64::MAX);
@@ -254,6 +336,7 @@ where
         if let Err(e) = outcome {
             *summary.refused.entry(error_kind(&e)).or_default() += 1;
         }
+        records.observe(nav);
         if !matches!(event, SensorEvent::Imu(_)) {
             continue;
         }
@@ -291,6 +374,14 @@ where
         previous = Some(current);
     }
     summary.reference_rms = squares.rms();
+    if records.seen {
+        let c = records.counts;
+        summary.gps_position_fused = c.gps_position_fused;
+        summary.gps_velocity_fused = c.gps_velocity_fused;
+        summary.gps_gated = c.gps_gated;
+        summary.mag_fused = c.mag_fused;
+        summary.mag_gated = c.mag_gated;
+    }
     summary
 }
 

@@ -654,3 +654,23 @@ pub(crate) fn reference_stream(path: &Path) -> Result<RowStream<ReferenceSample>
         "reference",
     ))
 }
+
+/// UTC time, microseconds since 1970, of the first GPS message (the topic
+/// [`open_streams`] reads) with a 3-D fix and a non-zero `time_utc_usec`;
+/// `Ok(None)` when no message has one.
+pub(crate) fn gps_utc_us(path: &Path) -> Result<Option<u64>, ReplayError> {
+    let topics: Vec<_> = GPS_TOPICS
+        .iter()
+        .map(|&t| (t, vec!["fix_type", "time_utc_usec"]))
+        .collect();
+    let mut decoded = decode(path, &Wanted { topics: &topics })?;
+    let Some(rows) = (0..topics.len()).find_map(|i| decoded.take(i, 0)) else {
+        return Ok(None);
+    };
+    Ok(rows
+        .iter()
+        .find_map(|row| match (row.values[0], row.values[1]) {
+            (Some(fix), Some(t)) if fix >= MIN_FIX_TYPE && t > 0.0 => Some(t as u64),
+            _ => None,
+        }))
+}

@@ -150,7 +150,8 @@ impl BoundConfig {
             if !(x.is_finite() && x >= 0.0) {
                 return Err(crate::Error::InvalidConfig {
                     field,
-                    reason: "must be finite and non-negative",
+                    value: Some(x),
+                    bound: crate::error::Bound::NotNegative,
                 });
             }
         }

@@ -96,13 +96,15 @@ impl DelayProfile {
         if !(self.initial_s.is_finite() && (MIN_DELAY_S..=MAX_DELAY_S).contains(&self.initial_s)) {
             return Err(InvalidConfig {
                 field: "delay.initial_s",
-                reason: "must be in [-1, 1] s",
+                value: None,
+                bound: crate::error::Bound::Rule("must be in [-1, 1] s"),
             });
         }
         if !self.drift_s_per_s.is_finite() {
             return Err(InvalidConfig {
                 field: "delay.drift_s_per_s",
-                reason: "must be finite",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite"),
             });
         }
         if self
@@ -112,7 +114,8 @@ impl DelayProfile {
         {
             return Err(InvalidConfig {
                 field: "delay.steps",
-                reason: "times and changes must be finite",
+                value: None,
+                bound: crate::error::Bound::Rule("times and changes must be finite"),
             });
         }
         if self.ramps.iter().any(|r| {
@@ -123,13 +126,17 @@ impl DelayProfile {
         }) {
             return Err(InvalidConfig {
                 field: "delay.ramps",
-                reason: "times and changes must be finite, durations positive",
+                value: None,
+                bound: crate::error::Bound::Rule(
+                    "times and changes must be finite, durations positive",
+                ),
             });
         }
         if !(self.jitter_std_s.is_finite() && self.jitter_std_s >= 0.0) {
             return Err(InvalidConfig {
                 field: "delay.jitter_std_s",
-                reason: "must be finite and non-negative",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and non-negative"),
             });
         }
         if !(self.jitter_uniform_half_width_s.is_finite()
@@ -137,7 +144,8 @@ impl DelayProfile {
         {
             return Err(InvalidConfig {
                 field: "delay.jitter_uniform_half_width_s",
-                reason: "must be finite and non-negative",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and non-negative"),
             });
         }
         Ok(())

@@ -175,7 +175,8 @@ impl FaultySimulation {
             let bad = |reason| {
                 Err(Error::InvalidConfig {
                     field: "fault",
-                    reason,
+                    value: None,
+                    bound: crate::error::Bound::Rule(reason),
                 })
             };
             match *fault {

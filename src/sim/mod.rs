@@ -121,7 +121,8 @@ impl SimConfig {
         if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s < 1e6) {
             return Err(crate::Error::InvalidConfig {
                 field: "duration_s",
-                reason: "must be positive and below 1e6 s",
+                value: None,
+                bound: crate::error::Bound::Rule("must be positive and below 1e6 s"),
             });
         }
         Ok(())
@@ -350,7 +351,8 @@ impl Simulation {
         if !(0.0..1.0).contains(&fraction) {
             return Err(crate::Error::InvalidConfig {
                 field: "imu_period_jitter",
-                reason: "must be in [0, 1)",
+                value: None,
+                bound: crate::error::Bound::Rule("must be in [0, 1)"),
             });
         }
         self.imu_jitter = fraction;

@@ -160,19 +160,22 @@ impl SensorConfig {
         if !IMU_RATE_RANGE_HZ.contains(&self.imu_rate_hz) {
             return Err(InvalidConfig {
                 field: "imu_rate_hz",
-                reason: "must be in 50-2000 Hz",
+                value: None,
+                bound: crate::error::Bound::Rule("must be in 50-2000 Hz"),
             });
         }
         if !GPS_RATE_RANGE_HZ.contains(&self.gps_rate_hz) {
             return Err(InvalidConfig {
                 field: "gps_rate_hz",
-                reason: "must be in 1-20 Hz",
+                value: None,
+                bound: crate::error::Bound::Rule("must be in 1-20 Hz"),
             });
         }
         if !(self.mag_rate_hz > 0.0 && self.mag_rate_hz <= self.imu_rate_hz) {
             return Err(InvalidConfig {
                 field: "mag_rate_hz",
-                reason: "must be positive and at most the IMU rate",
+                value: None,
+                bound: crate::error::Bound::Rule("must be positive and at most the IMU rate"),
             });
         }
         let non_negative = [
@@ -196,20 +199,23 @@ impl SensorConfig {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(InvalidConfig {
                     field,
-                    reason: "must be finite and non-negative",
+                    value: Some(value),
+                    bound: crate::error::Bound::NotNegative,
                 });
             }
         }
         if !self.origin.is_valid() {
             return Err(InvalidConfig {
                 field: "origin",
-                reason: "not a valid geodetic position",
+                value: None,
+                bound: crate::error::Bound::Rule("not a valid geodetic position"),
             });
         }
         if !self.declination_rad.is_finite() || !self.inclination_rad.is_finite() {
             return Err(InvalidConfig {
                 field: "inclination_rad",
-                reason: "field angles must be finite",
+                value: None,
+                bound: crate::error::Bound::Rule("field angles must be finite"),
             });
         }
         if self.vibration.iter().any(|h| {
@@ -220,7 +226,10 @@ impl SensorConfig {
         }) {
             return Err(InvalidConfig {
                 field: "vibration",
-                reason: "frequencies and amplitudes must be finite, frequencies non-negative",
+                value: None,
+                bound: crate::error::Bound::Rule(
+                    "frequencies and amplitudes must be finite, frequencies non-negative",
+                ),
             });
         }
         Ok(())

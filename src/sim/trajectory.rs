@@ -196,7 +196,8 @@ impl TrajectoryConfig {
         if !positive(self.accel_limit_m_s2) {
             return Err(InvalidConfig {
                 field: "accel_limit_m_s2",
-                reason: "must be finite and positive",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and positive"),
             });
         }
         for term in &self.path {
@@ -206,7 +207,10 @@ impl TrajectoryConfig {
             {
                 return Err(InvalidConfig {
                     field: "path",
-                    reason: "periods must be positive, amplitudes and phases finite",
+                    value: None,
+                    bound: crate::error::Bound::Rule(
+                        "periods must be positive, amplitudes and phases finite",
+                    ),
                 });
             }
         }
@@ -216,7 +220,8 @@ impl TrajectoryConfig {
         {
             return Err(InvalidConfig {
                 field: "manoeuvre_period_s",
-                reason: "must be positive and at least twice taper_s",
+                value: None,
+                bound: crate::error::Bound::Rule("must be positive and at least twice taper_s"),
             });
         }
         if !(positive(self.chirp_start_hz)
@@ -225,19 +230,22 @@ impl TrajectoryConfig {
         {
             return Err(InvalidConfig {
                 field: "chirp_end_hz",
-                reason: "chirp frequencies must be positive and grow",
+                value: None,
+                bound: crate::error::Bound::Rule("chirp frequencies must be positive and grow"),
             });
         }
         if !positive(self.start_ramp_s) {
             return Err(InvalidConfig {
                 field: "start_ramp_s",
-                reason: "must be finite and positive",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and positive"),
             });
         }
         if !(self.amplitude_growth.is_finite() && self.amplitude_growth > 1.0) {
             return Err(InvalidConfig {
                 field: "amplitude_growth",
-                reason: "must be finite and above 1",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and above 1"),
             });
         }
         if !self.yaw_offset_rad.is_finite()
@@ -246,7 +254,8 @@ impl TrajectoryConfig {
         {
             return Err(InvalidConfig {
                 field: "yaw_period_s",
-                reason: "yaw terms must be finite, the period positive",
+                value: None,
+                bound: crate::error::Bound::Rule("yaw terms must be finite, the period positive"),
             });
         }
         Ok(())
@@ -318,7 +327,8 @@ impl Trajectory {
         if !(horizon_s.is_finite() && horizon_s > 0.0) {
             return Err(crate::Error::InvalidConfig {
                 field: "duration_s",
-                reason: "must be finite and positive",
+                value: None,
+                bound: crate::error::Bound::Rule("must be finite and positive"),
             });
         }
         let mut traj = Self {
@@ -345,7 +355,8 @@ impl Trajectory {
         if max_norm(0.0) >= limit {
             return Err(crate::Error::InvalidConfig {
                 field: "accel_limit_m_s2",
-                reason: "the slow path alone already reaches the limit",
+                value: None,
+                bound: crate::error::Bound::Rule("the slow path alone already reaches the limit"),
             });
         }
         let mut hi = 1.0;

@@ -1,0 +1,42 @@
+//! The filters, the delay loop, the calibrator and the configurations can
+//! move to another thread and be shared by reference (`Send + Sync`), in both
+//! precisions; the navigator can move (`Send`). A compile-time check: the test
+//! fails to build if a field stops allowing it.
+//!
+//! `DelayCompensatedNav` is not `Sync` yet: its IMU history
+//! (`delay::FractionalDelayLine`) counts the taps it reads in a `Cell<u64>`
+//! (reads take `&self`). Moving that count to the navigator's `&mut self`
+//! path (or an `AtomicU32`: thumbv7em has no 64-bit atomics) would make it
+//! `Sync`; then move it into `every_estimator` below.
+
+use delaynav::delay::DefaultCalibrator;
+use delaynav::{
+    Aekf17Config, AugmentedEkf17, DefaultDelayLoop, DelayCompensatedNav, Ekf16, Ekf16Config, Error,
+    Estimate, NavConfig, Scalar,
+};
+
+const fn send_sync<T: Send + Sync>() {}
+const fn send<T: Send>() {}
+
+const fn every_estimator<T: Scalar>() {
+    send::<DelayCompensatedNav<T>>();
+    send_sync::<Ekf16<T>>();
+    send_sync::<AugmentedEkf17<T>>();
+    send_sync::<DefaultDelayLoop<T>>();
+    send_sync::<DefaultCalibrator<T>>();
+    send_sync::<NavConfig<T>>();
+    send_sync::<Ekf16Config<T>>();
+    send_sync::<Aekf17Config<T>>();
+    send_sync::<Estimate<T>>();
+}
+
+const _: () = every_estimator::<f32>();
+const _: () = every_estimator::<f64>();
+const _: () = send_sync::<Error>();
+
+#[test]
+fn a_navigator_runs_on_another_thread() {
+    let nav = DelayCompensatedNav::<f32>::new(NavConfig::default()).unwrap();
+    let nav = std::thread::spawn(move || nav).join().unwrap();
+    assert!(nav.delay_s() > 0.0);
+}
