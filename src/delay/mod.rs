@@ -81,6 +81,7 @@ pub mod fir;
 pub mod fractional_delay;
 pub mod gain_fusion;
 mod grid;
+mod matched;
 pub(crate) mod ring;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
@@ -89,6 +90,7 @@ pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
 pub use grid::{MAX_GPS_DIFF_SPAN, MAX_GRID_TIME_US, MAX_INPUT_MAGNITUDE};
+pub use matched::MATCHED_INTERVALS;
 
 use nalgebra::Vector3;
 
@@ -99,6 +101,7 @@ use grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
     non_negative_finite, positive_finite, signed_grid_samples, validate_grid,
 };
+use matched::MatchedCorrelator;
 
 /// Per-sensor pure delays of eq. (15), seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -157,8 +160,16 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub buffer_s: T,
     /// GPS velocity differencing span `n` of eq. (14), fixes, `1..=8`.
     pub gps_diff_span: usize,
-    /// Cutoff of the smoothing applied to both accelerations, Hz.
+    /// Cutoff of the smoothing applied to both accelerations, Hz (grid path
+    /// only).
     pub smoothing_cutoff_hz: T,
+    /// Correlate over the GPS fix intervals themselves (`matched` module):
+    /// each GPS difference against the IMU acceleration averaged over the
+    /// same interval, shifted, instead of smoothed streams on the grid. For
+    /// slow GPS (set by [`adapted_to_gps_rate`](Self::adapted_to_gps_rate)
+    /// below 5 Hz); the buffer must hold at most [`MATCHED_INTERVALS`]
+    /// intervals.
+    pub matched_fix_intervals: bool,
     /// Smallest IMU acceleration variance over the buffer for `V_i = 1`, (m/s^2)^2.
     pub min_accel_variance_m2_s4: T,
     /// Smallest correlation peak for `V_i = 1`, in `[0, 1)`.
@@ -211,6 +222,7 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             buffer_s: T::lit(5.0),
             gps_diff_span: 2,
             smoothing_cutoff_hz: T::lit(1.0),
+            matched_fix_intervals: false,
             min_accel_variance_m2_s4: T::lit(0.25),
             min_peak: T::lit(0.5),
             fixes_per_update: 1,
@@ -238,6 +250,8 @@ struct GridSizes {
     shift_min: usize,
     lags: usize,
     lead: usize,
+    /// Smallest shift, grid samples, either sign.
+    shift_lo: i64,
     /// Grid samples the GPS stream is shifted later so that a negative
     /// delay becomes a shift `>= 0`.
     offset: usize,
@@ -275,6 +289,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
         self.gps_diff_span = if slow { 1 } else { 2 };
         self.correlation_rate_hz = T::lit(if slow { 25.0 } else { 50.0 });
         self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
+        self.matched_fix_intervals = slow;
         self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
         self.validate()?;
         Ok(self)
@@ -349,6 +364,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
             shift_min: usize::try_from(shift_lo + offset as i64).unwrap_or(0),
             lags: usize::try_from(shift_hi - shift_lo + 1).unwrap_or(0),
             offset,
+            shift_lo,
             lead: lead_samples(
                 self.gps_diff_span,
                 self.max_gps_gap_s,
@@ -506,6 +522,7 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     imu_grid: ImuToGrid<T>,
     gps_grid: GpsToGrid<T>,
     correlator: SlidingCorrelator<T, BUF, LAGS, HIST>,
+    matched: MatchedCorrelator<T>,
     fusion: GainFusion<T>,
     last_imu_us: Option<u64>,
     last_gps_us: Option<u64>,
@@ -546,13 +563,24 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         Ok(Self {
             config,
             period_s: T::lit(sizes.period_us as f64 * 1e-6),
-            imu_grid: ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz),
+            imu_grid: if config.matched_fix_intervals {
+                ImuToGrid::unsmoothed(sizes.period_us)
+            } else {
+                ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz)
+            },
             gps_grid: GpsToGrid::new(
                 sizes.period_us,
                 config.gps_diff_span,
                 config.smoothing_cutoff_hz,
             ),
             correlator,
+            matched: MatchedCorrelator::new(
+                sizes.period_us,
+                sizes.shift_lo,
+                sizes.lags,
+                (config.buffer_s.as_f64() * 1e6) as u64,
+                config.gps_diff_span,
+            ),
             fusion: GainFusion::new(config.fusion)?,
             last_imu_us: None,
             last_gps_us: None,
@@ -687,19 +715,31 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if gap {
             self.gps_grid.reset();
             self.correlator.reset_pairs();
+            self.matched.reset();
             self.restarts += 1;
         }
         let (correlator, offset) = (&mut self.correlator, self.offset_samples);
-        self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
-            correlator.push_y(j + offset, y)
-        });
+        if self.config.matched_fix_intervals {
+            self.matched.push_fix(t_us, velocity_ned_m_s);
+        } else {
+            self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
+                correlator.push_y(j + offset, y)
+            });
+        }
         self.last_gps_us = Some(t_us);
         self.fixes_since_update += 1;
         if self.fixes_since_update < self.config.fixes_per_update {
             return Ok(None);
         }
         self.fixes_since_update = 0;
-        let Some(peaks) = self.correlator.peaks() else {
+        let peaks = if self.config.matched_fix_intervals {
+            let correlator = &self.correlator;
+            self.matched
+                .peaks::<LAGS>(self.offset_samples as usize, |j| correlator.imu_at(j))
+        } else {
+            self.correlator.peaks()
+        };
+        let Some(peaks) = peaks else {
             self.status = DelayStatus::WaitingForData;
             return Ok(None);
         };
