@@ -191,6 +191,13 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// grows (the delay's Cramer-Rao bound scales as `sigma_v^2 / sum a^2`).
     /// 0 disables the scaling.
     pub reference_accel_variance_m2_s4: T,
+    /// While not locked (acquiring from an uncertain start, or following
+    /// after a re-acquisition), `R_i` scales as `(reference / v)^e` with this
+    /// exponent `e` instead of `reference / v`: a window moving ten times
+    /// less weighs a hundred times less at `e = 2`, so the first, weakly
+    /// moving windows of a cold start (whose peaks scatter by tens of ms)
+    /// give way to the first strong ones. 1 keeps the locked weighting.
+    pub acquisition_motion_exponent: T,
     /// Re-acquisition threshold, in standard deviations `sqrt(P + R_i)`: when
     /// every valid axis (at least one) disagrees with the estimate beyond it,
     /// on the same side, for `reacquire_after_s`, the estimate restarts from
@@ -231,6 +238,7 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             process_noise_ms2_per_s: T::lit(4.2),
             measurement_noise_ms2: [T::lit(1600.0); AXES],
             reference_accel_variance_m2_s4: T::lit(9.0),
+            acquisition_motion_exponent: T::lit(2.0),
             reacquire_sigma: T::lit(2.0),
             reacquire_after_s: T::lit(1.0),
             lock_std_s: T::lit(0.03),
@@ -330,6 +338,12 @@ impl<T: Scalar> DelayLoopConfig<T> {
         }
         if !non_negative_finite(self.reference_accel_variance_m2_s4) {
             return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
+        }
+        if !(self.acquisition_motion_exponent.is_finite()
+            && self.acquisition_motion_exponent >= T::one()
+            && self.acquisition_motion_exponent <= T::lit(4.0))
+        {
+            return bad("acquisition_motion_exponent", "must be 1 to 4");
         }
         if !(non_negative_finite(self.reacquire_sigma) && positive(self.reacquire_after_s)) {
             return bad(
@@ -494,7 +508,8 @@ fn drop_inconsistent_axes<T: Scalar>(z: &[T; AXES], valid: &mut [bool; AXES], r:
     };
     let k = T::lit(AXIS_AGREEMENT_SIGMA);
     for axis in 0..AXES {
-        if axis != best && valid[axis] && (z[axis] - z[best]).abs() > k * (r[axis] + r[best]).sqrt() {
+        if axis != best && valid[axis] && (z[axis] - z[best]).abs() > k * (r[axis] + r[best]).sqrt()
+        {
             valid[axis] = false;
         }
     }
@@ -790,10 +805,17 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let ms2 = T::lit(1e-6);
         let reference = self.config.reference_accel_variance_m2_s4;
         let floor = self.config.min_accel_variance_m2_s4.max(T::lit(1e-6));
+        // Acquiring, the strong windows must dominate: the first, weakly
+        // moving ones are the least reliable (see `acquisition_motion_exponent`).
+        let exponent = if self.locked {
+            T::one()
+        } else {
+            self.config.acquisition_motion_exponent
+        };
         let r_buffer_s2: [T; AXES] = core::array::from_fn(|axis| {
             let r = self.config.measurement_noise_ms2[axis] * ms2;
             if reference > T::zero() {
-                r * reference / peaks[axis].accel_variance.max(floor)
+                r * (reference / peaks[axis].accel_variance.max(floor)).powf(exponent)
             } else {
                 r
             }
