@@ -245,3 +245,55 @@ impl<T: Scalar> MatchedCorrelator<T> {
         Some(out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The mean over an interval with fractional ends weighs each bin by its
+    /// overlap: bins of value `j` (bin `j` covers `[(j - 1/2) Tc, (j + 1/2) Tc)`).
+    #[test]
+    fn box_mean_weighs_bins_by_overlap() {
+        let m = MatchedCorrelator::<f64>::new(20_000, 0, 3, 5_000_000, 1);
+        let imu = |j: i64| (j >= 0).then(|| Vector3::repeat(j as f64));
+        // [0, 40 ms]: half of bin 0 (10 ms at 0), bin 1 (20 ms at 1), half of bin 2 (10 ms at 2).
+        let mean = m.box_mean(0, 40_000, &imu).unwrap();
+        assert!((mean[0] - (10.0 * 0.0 + 20.0 * 1.0 + 10.0 * 2.0) / 40.0).abs() < 1e-12);
+        // Within one bin: that bin's value.
+        assert_eq!(m.box_mean(31_000, 45_000, &imu).unwrap()[1], 2.0);
+        // A missing bin: no mean.
+        assert!(m.box_mean(-30_000, 10_000, &imu).is_none());
+    }
+
+    /// Noise-free: a GPS velocity `tau` late, differenced over each fix
+    /// interval, peaks at `tau` against the IMU means over the same
+    /// intervals, however fast the motion is against the 1 Hz fixes.
+    #[test]
+    fn peaks_at_the_delay_with_aliased_motion() {
+        let period_us = 40_000u64;
+        let tau_s = 0.2;
+        // Signed shifts 0..=25 (0 to 1 s at 25 Hz).
+        let mut m = MatchedCorrelator::<f64>::new(period_us, 0, 26, 10_000_000, 1);
+        let velocity = |t: f64| -3.0 / 1.7 * (1.7 * t).cos() - 2.0 / 4.1 * (4.1 * t).cos();
+        // Acceleration 3 sin(1.7 t) + 2 sin(4.1 t): the 0.65 Hz term is above
+        // the 1 Hz fixes' Nyquist frequency.
+        let samples: std::collections::BTreeMap<i64, f64> = (0..1000i64)
+            .map(|j| {
+                // The bin mean of the acceleration.
+                let t = j as f64 * 0.04;
+                let mean = (velocity(t + 0.02) - velocity(t - 0.02)) / 0.04;
+                (j, mean)
+            })
+            .collect();
+        let imu = |j: i64| samples.get(&j).map(|&a| Vector3::new(a, 0.0, 0.0));
+        for k in 1..=30u64 {
+            let t_us = k * 1_000_000 + 3_000;
+            let t = t_us as f64 * 1e-6;
+            m.push_fix(t_us, Vector3::new(velocity(t - tau_s), 0.0, 0.0));
+        }
+        let peaks = m.peaks::<61>(0, imu).unwrap();
+        let z = peaks[0].shift_samples * 0.04;
+        assert!(peaks[0].interior && peaks[0].peak > 0.999, "{:?}", peaks[0]);
+        assert!((z - tau_s).abs() < 0.004, "{z}");
+    }
+}

@@ -1058,3 +1058,21 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.push_gps(fix.time_us(), fix.velocity_ned_m_s())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An axis far from the best-measured one is left out; one within its
+    /// spread stays; a single valid axis is kept.
+    #[test]
+    fn inconsistent_axis_is_left_out() {
+        let r = [0.0004, 0.0016, 0.0009];
+        let mut valid = [true, true, true];
+        drop_inconsistent_axes(&[0.20, 0.80, 0.23], &mut valid, &r);
+        assert_eq!(valid, [true, false, true]);
+        let mut single = [false, true, false];
+        drop_inconsistent_axes(&[0.0, 0.80, 0.0], &mut single, &r);
+        assert_eq!(single, [false, true, false]);
+    }
+}
