@@ -26,10 +26,16 @@
 //!    coefficient over a buffer of `B` grid samples (default 5 s) for every
 //!    shift of the window `[tau_min, tau_max]` (default 0 to 1 s), updated by
 //!    sliding sums; the peak is refined by a parabola; `z_i = s_peak Tc` (s).
+//!    For slow GPS ([`DelayLoopConfig::matched_fix_intervals`]) the grid
+//!    stream of the GPS is replaced by the fix intervals themselves: each GPS
+//!    difference against the IMU mean over the same interval, shifted
+//!    (`matched` module).
 //! 3. Validity: `V_i = 1` when the peak is interior to the window, its value
 //!    is at least `min_peak`, and the axis' IMU acceleration variance over the
 //!    buffer is at least `min_accel_variance_m2_s4`: without motion the peak
 //!    position says nothing about the delay.
+//!    A valid axis beyond [`AXIS_AGREEMENT_SIGMA`] of the best-measured
+//!    axis of the same window is left out.
 //! 4. Fusion ([`gain_fusion`]): Table 2, corrected, once per GPS fix (or every
 //!    `fixes_per_update` fixes), with `Q_f` and `R_i` derived per iteration
 //!    from rate-independent settings, `R_i` scaled by each axis' motion, and
