@@ -238,6 +238,13 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.pairs >= self.buffer_len
     }
 
+    /// The IMU grid sample `j`, while stored.
+    pub(crate) fn imu_at(&self, j: i64) -> Option<Vector3<T>> {
+        let newest = i64::try_from(self.x_newest?).ok()?;
+        let age = usize::try_from(newest.checked_sub(j)?).ok()?;
+        self.x.get(age)
+    }
+
     /// Products accumulated so far: the work counter of the sliding update.
     pub fn multiply_adds(&self) -> u64 {
         self.multiply_adds

@@ -150,6 +150,14 @@ impl<T: Scalar> ImuToGrid<T> {
         }
     }
 
+    /// The bin means resampled onto the grid, without the smoothing (the
+    /// fix-interval correlation averages them itself).
+    pub(crate) fn unsmoothed(period_us: u64) -> Self {
+        let mut grid = Self::new(period_us, T::one());
+        grid.grid.smoother.alpha = T::one();
+        grid
+    }
+
     /// Forgets the stream (after a gap); the configuration stays.
     pub(crate) fn reset(&mut self) {
         self.bin = None;

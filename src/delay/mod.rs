@@ -26,10 +26,16 @@
 //!    coefficient over a buffer of `B` grid samples (default 5 s) for every
 //!    shift of the window `[tau_min, tau_max]` (default 0 to 1 s), updated by
 //!    sliding sums; the peak is refined by a parabola; `z_i = s_peak Tc` (s).
+//!    For slow GPS ([`DelayLoopConfig::matched_fix_intervals`]) the grid
+//!    stream of the GPS is replaced by the fix intervals themselves: each GPS
+//!    difference against the IMU mean over the same interval, shifted
+//!    (`matched` module).
 //! 3. Validity: `V_i = 1` when the peak is interior to the window, its value
 //!    is at least `min_peak`, and the axis' IMU acceleration variance over the
 //!    buffer is at least `min_accel_variance_m2_s4`: without motion the peak
 //!    position says nothing about the delay.
+//!    A valid axis beyond [`AXIS_AGREEMENT_SIGMA`] of the best-measured
+//!    axis of the same window is left out.
 //! 4. Fusion ([`gain_fusion`]): Table 2, corrected, once per GPS fix (or every
 //!    `fixes_per_update` fixes), with `Q_f` and `R_i` derived per iteration
 //!    from rate-independent settings, `R_i` scaled by each axis' motion, and
@@ -81,6 +87,7 @@ pub mod fir;
 pub mod fractional_delay;
 pub mod gain_fusion;
 mod grid;
+mod matched;
 pub(crate) mod ring;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
@@ -89,6 +96,7 @@ pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
 pub use grid::{MAX_GPS_DIFF_SPAN, MAX_GRID_TIME_US, MAX_INPUT_MAGNITUDE};
+pub use matched::MATCHED_INTERVALS;
 
 use nalgebra::Vector3;
 
@@ -99,6 +107,7 @@ use grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
     non_negative_finite, positive_finite, signed_grid_samples, validate_grid,
 };
+use matched::MatchedCorrelator;
 
 /// Per-sensor pure delays of eq. (15), seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -159,8 +168,16 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub buffer_s: T,
     /// GPS velocity differencing span `n` of eq. (14), fixes, `1..=8`.
     pub gps_diff_span: usize,
-    /// Cutoff of the smoothing applied to both accelerations, Hz.
+    /// Cutoff of the smoothing applied to both accelerations, Hz (grid path
+    /// only).
     pub smoothing_cutoff_hz: T,
+    /// Correlate over the GPS fix intervals themselves (`matched` module):
+    /// each GPS difference against the IMU acceleration averaged over the
+    /// same interval, shifted, instead of smoothed streams on the grid. For
+    /// slow GPS (set by [`adapted_to_gps_rate`](Self::adapted_to_gps_rate)
+    /// below 5 Hz); the buffer must hold at most [`MATCHED_INTERVALS`]
+    /// intervals.
+    pub matched_fix_intervals: bool,
     /// Smallest IMU acceleration variance over the buffer for `V_i = 1`, (m/s^2)^2.
     pub min_accel_variance_m2_s4: T,
     /// Smallest correlation peak for `V_i = 1`, in `[0, 1)`.
@@ -182,6 +199,13 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// grows (the delay's Cramer-Rao bound scales as `sigma_v^2 / sum a^2`).
     /// 0 disables the scaling.
     pub reference_accel_variance_m2_s4: T,
+    /// While not locked (acquiring from an uncertain start, or following
+    /// after a re-acquisition), `R_i` scales as `(reference / v)^e` with this
+    /// exponent `e` instead of `reference / v`: a window moving ten times
+    /// less weighs a hundred times less at `e = 2`, so the first, weakly
+    /// moving windows of a cold start (whose peaks scatter by tens of ms)
+    /// give way to the first strong ones. 1 keeps the locked weighting.
+    pub acquisition_motion_exponent: T,
     /// Re-acquisition threshold, in standard deviations `sqrt(P + R_i)`: when
     /// every valid axis (at least one) disagrees with the estimate beyond it,
     /// on the same side, for `reacquire_after_s`, the estimate restarts from
@@ -213,6 +237,7 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             buffer_s: T::lit(5.0),
             gps_diff_span: 2,
             smoothing_cutoff_hz: T::lit(1.0),
+            matched_fix_intervals: false,
             min_accel_variance_m2_s4: T::lit(0.25),
             min_peak: T::lit(0.5),
             fixes_per_update: 1,
@@ -221,6 +246,7 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             process_noise_ms2_per_s: T::lit(4.2),
             measurement_noise_ms2: [T::lit(1600.0); AXES],
             reference_accel_variance_m2_s4: T::lit(9.0),
+            acquisition_motion_exponent: T::lit(2.0),
             reacquire_sigma: T::lit(2.0),
             reacquire_after_s: T::lit(1.0),
             lock_std_s: T::lit(0.03),
@@ -240,6 +266,8 @@ struct GridSizes {
     shift_min: usize,
     lags: usize,
     lead: usize,
+    /// Smallest shift, grid samples, either sign.
+    shift_lo: i64,
     /// Grid samples the GPS stream is shifted later so that a negative
     /// delay becomes a shift `>= 0`.
     offset: usize,
@@ -277,6 +305,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
         self.gps_diff_span = if slow { 1 } else { 2 };
         self.correlation_rate_hz = T::lit(if slow { 25.0 } else { 50.0 });
         self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
+        self.matched_fix_intervals = slow;
         self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
         self.validate()?;
         Ok(self)
@@ -324,6 +353,12 @@ impl<T: Scalar> DelayLoopConfig<T> {
         if !non_negative_finite(self.reference_accel_variance_m2_s4) {
             return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
         }
+        if !(self.acquisition_motion_exponent.is_finite()
+            && self.acquisition_motion_exponent >= T::one()
+            && self.acquisition_motion_exponent <= T::lit(4.0))
+        {
+            return bad("acquisition_motion_exponent", "must be 1 to 4");
+        }
         if !(non_negative_finite(self.reacquire_sigma) && positive(self.reacquire_after_s)) {
             return bad(
                 "reacquire",
@@ -357,6 +392,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
             shift_min: usize::try_from(shift_lo + offset as i64).unwrap_or(0),
             lags: usize::try_from(shift_hi - shift_lo + 1).unwrap_or(0),
             offset,
+            shift_lo,
             lead: lead_samples(
                 self.gps_diff_span,
                 self.max_gps_gap_s,
@@ -464,6 +500,37 @@ pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
 /// it only removes the pessimism of the noise model).
 pub const SIGMA_SCALE2_MIN: f64 = 0.01;
 
+/// Largest disagreement between two valid axes of one window, in standard
+/// deviations `sqrt(R_i + R_j)` of their difference.
+pub const AXIS_AGREEMENT_SIGMA: f64 = 3.0;
+
+/// Cross-axis check of one window: every axis measures the same delay, so a
+/// valid axis whose peak lies beyond [`AXIS_AGREEMENT_SIGMA`] of the best
+/// measured one (smallest `R_i`, the most motion) is left out. Such a peak
+/// comes from an error of `a_fwd` that follows the motion (the navigator's
+/// tilt), not from the delay: on the 1 Hz high scenario the east axis gave
+/// 0.80 s with a peak of 0.97 while north gave 0.19 s.
+fn drop_inconsistent_axes<T: Scalar>(z: &[T; AXES], valid: &mut [bool; AXES], r: &[T; AXES]) {
+    // The valid axis of smallest `R`, with its `R` (no index kept out of
+    // the loop, and `best < AXES` stated: no reachable panic, benches/no-panic).
+    let mut best: Option<(usize, T)> = None;
+    for axis in (0..AXES).filter(|&a| valid[a]) {
+        if best.is_none_or(|(_, r_best)| r[axis] < r_best) {
+            best = Some((axis, r[axis]));
+        }
+    }
+    let Some((best, _)) = best.filter(|&(b, _)| b < AXES) else {
+        return;
+    };
+    let k = T::lit(AXIS_AGREEMENT_SIGMA);
+    for axis in 0..AXES {
+        if axis != best && valid[axis] && (z[axis] - z[best]).abs() > k * (r[axis] + r[best]).sqrt()
+        {
+            valid[axis] = false;
+        }
+    }
+}
+
 /// Peaks of moving axes sitting on one edge of the shift window.
 #[derive(Debug, Clone, Copy)]
 struct EdgeRun<T: Scalar> {
@@ -514,6 +581,7 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     imu_grid: ImuToGrid<T>,
     gps_grid: GpsToGrid<T>,
     correlator: SlidingCorrelator<T, BUF, LAGS, HIST>,
+    matched: MatchedCorrelator<T>,
     fusion: GainFusion<T>,
     last_imu_us: Option<u64>,
     last_gps_us: Option<u64>,
@@ -558,13 +626,24 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         Ok(Self {
             config,
             period_s: T::lit(sizes.period_us as f64 * 1e-6),
-            imu_grid: ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz),
+            imu_grid: if config.matched_fix_intervals {
+                ImuToGrid::unsmoothed(sizes.period_us)
+            } else {
+                ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz)
+            },
             gps_grid: GpsToGrid::new(
                 sizes.period_us,
                 config.gps_diff_span,
                 config.smoothing_cutoff_hz,
             ),
             correlator,
+            matched: MatchedCorrelator::new(
+                sizes.period_us,
+                sizes.shift_lo,
+                sizes.lags,
+                (config.buffer_s.as_f64() * 1e6) as u64,
+                config.gps_diff_span,
+            ),
             fusion: GainFusion::new(config.fusion)?,
             last_imu_us: None,
             last_gps_us: None,
@@ -699,19 +778,31 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if gap {
             self.gps_grid.reset();
             self.correlator.reset_pairs();
+            self.matched.reset();
             self.restarts += 1;
         }
         let (correlator, offset) = (&mut self.correlator, self.offset_samples);
-        self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
-            correlator.push_y(j + offset, y)
-        });
+        if self.config.matched_fix_intervals {
+            self.matched.push_fix(t_us, velocity_ned_m_s);
+        } else {
+            self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
+                correlator.push_y(j + offset, y)
+            });
+        }
         self.last_gps_us = Some(t_us);
         self.fixes_since_update += 1;
         if self.fixes_since_update < self.config.fixes_per_update {
             return Ok(None);
         }
         self.fixes_since_update = 0;
-        let Some(peaks) = self.correlator.peaks() else {
+        let peaks = if self.config.matched_fix_intervals {
+            let correlator = &self.correlator;
+            self.matched
+                .peaks::<LAGS>(self.offset_samples as usize, |j| correlator.imu_at(j))
+        } else {
+            self.correlator.peaks()
+        };
+        let Some(peaks) = peaks else {
             self.status = DelayStatus::WaitingForData;
             return Ok(None);
         };
@@ -734,14 +825,22 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let ms2 = T::lit(1e-6);
         let reference = self.config.reference_accel_variance_m2_s4;
         let floor = self.config.min_accel_variance_m2_s4.max(T::lit(1e-6));
+        // Acquiring, the strong windows must dominate: the first, weakly
+        // moving ones are the least reliable (see `acquisition_motion_exponent`).
+        let exponent = if self.locked {
+            T::one()
+        } else {
+            self.config.acquisition_motion_exponent
+        };
         let r_buffer_s2: [T; AXES] = core::array::from_fn(|axis| {
             let r = self.config.measurement_noise_ms2[axis] * ms2;
             if reference > T::zero() {
-                r * reference / peaks[axis].accel_variance.max(floor)
+                r * (reference / peaks[axis].accel_variance.max(floor)).powf(exponent)
             } else {
                 r
             }
         });
+        drop_inconsistent_axes(&z, &mut valid, &r_buffer_s2);
         let q_s2 = self.config.process_noise_ms2_per_s * ms2 * dt_s;
         let r_s2 = r_buffer_s2.map(|r| r * buffer_s / dt_s);
         self.match_innovations(dt_s, q_s2, &z, &valid, &r_buffer_s2);
@@ -977,5 +1076,23 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         fix: &G,
     ) -> Result<Option<DelayUpdate<T>>, Error> {
         self.push_gps(fix.time_us(), fix.velocity_ned_m_s())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An axis far from the best-measured one is left out; one within its
+    /// spread stays; a single valid axis is kept.
+    #[test]
+    fn inconsistent_axis_is_left_out() {
+        let r = [0.0004, 0.0016, 0.0009];
+        let mut valid = [true, true, true];
+        drop_inconsistent_axes(&[0.20, 0.80, 0.23], &mut valid, &r);
+        assert_eq!(valid, [true, false, true]);
+        let mut single = [false, true, false];
+        drop_inconsistent_axes(&[0.0, 0.80, 0.0], &mut single, &r);
+        assert_eq!(single, [false, true, false]);
     }
 }
