@@ -78,7 +78,8 @@
 //! and leave the filter unchanged; [`Ekf16::refusals`] counts them. An IMU
 //! gap longer than `max_imu_step_us` returns [`Error::StepTooLong`]: the
 //! state is not propagated, the clock moves to the sample and `P` grows by
-//! `Q` of the gap.
+//! `Q` of the gap, or of [`MAX_GAP_NOISE_US`] when the gap is longer (the
+//! state is then unknown anyway; the GPS block resets bring it back).
 
 pub mod config;
 pub mod measurement;
@@ -95,8 +96,8 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-pub use nav_core::GpsBlock;
 use nav_core::NavCore;
+pub use nav_core::{GpsBlock, MAX_GAP_NOISE_US};
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.

@@ -79,6 +79,11 @@ use crate::sensors::{
 };
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
+/// The longest stretch of an IMU gap whose process noise is added to `P`,
+/// µs (a gap longer than `max_imu_step_us` is not integrated; `P` grows by
+/// the noise of `min(gap, MAX_GAP_NOISE_US)`).
+pub const MAX_GAP_NOISE_US: u64 = 60_000_000;
+
 /// One state appended after the 16 navigation states: a random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ExtraState<T: Scalar> {
@@ -565,13 +570,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         if dt_us > self.config.max_imu_step_us {
             if self.initialized {
+                // A gap adds the noise of at most `MAX_GAP_NOISE_US`: beyond
+                // it the state is unknown anyway, and larger variances leave
+                // the range a later update can handle in floating point.
                 let mut p = self.p;
                 process::add_process_noise(
                     &mut p,
                     &self.nav_state(),
                     &gyro,
                     &accel,
-                    us_to_s(dt_us),
+                    us_to_s(dt_us.min(MAX_GAP_NOISE_US)),
                     &self.config,
                     &self.extra_intensity,
                 );
