@@ -82,6 +82,7 @@
 //! state is then unknown anyway; the GPS block resets bring it back).
 
 pub mod config;
+pub mod delta;
 pub mod measurement;
 pub(crate) mod nav_core;
 pub mod process;
@@ -304,6 +305,16 @@ impl<T: Scalar> Ekf16<T> {
     /// The covariance (16x16).
     pub fn covariance(&self) -> &StateCovariance<T> {
         self.core.covariance()
+    }
+
+    /// One prediction over a filter step from its delta angle and delta
+    /// velocity ([`delta::DeltaAccumulator`], coning and sculling
+    /// corrected), instead of one [`push_imu`](Navigator::push_imu) per
+    /// sample: the multi-rate filter of the navigator. The step must start
+    /// at the filter's time; otherwise (and before initialization) its last
+    /// sample is pushed as an IMU sample. Refusals as for `push_imu`.
+    pub fn push_imu_deltas(&mut self, deltas: &delta::ImuDeltas<T>) -> Result<(), Error> {
+        self.core.push_deltas(deltas)
     }
 
     crate::ekf16::nav_core::core_accessors!();

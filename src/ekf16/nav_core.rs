@@ -58,6 +58,7 @@
 //! - No allocation: every buffer is a fixed-size nalgebra type.
 
 use super::config::Ekf16Config;
+use super::delta::ImuDeltas;
 use super::measurement;
 use super::process;
 use super::state::{
@@ -568,6 +569,72 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             ),
             None => (s.gyro_rad_s, s.accel_m_s2),
         };
+        self.step(s, dt_us, &gyro, &accel)
+    }
+
+    /// Feeds the delta angle and delta velocity of a filter step
+    /// ([`ImuDeltas`], accumulated from IMU samples with coning and
+    /// sculling corrections): one prediction over the whole step, as
+    /// [`push_imu`](Self::push_imu) does over one sample step, with the
+    /// same checks on the step's last sample and on the step's start (it
+    /// must be the state's time). Before initialization only the last
+    /// sample counts (clock, accelerometer mean).
+    ///
+    /// [`process::propagate`] holds the rate `w` and the specific force `f`
+    /// over the step and rotates `f` at mid-step; it is given
+    /// `w = Δθ / T` and `f = exp(-Δθ / 2) Δv / T` (`T` the step, s), so
+    /// that it adds exactly `R(q) Δv` to the velocity and turns the
+    /// attitude by `Δθ` (bias-corrected). The covariance is predicted with
+    /// the mean rate and specific force over the step, `Δθ / T`, `Δv / T`.
+    pub(crate) fn push_deltas(&mut self, d: &ImuDeltas<T>) -> Result<(), Error> {
+        let s = d.last;
+        if !(all_finite_fixed(&d.delta_angle_rad) && all_finite_fixed(&d.delta_velocity_m_s)) {
+            bump(&mut self.refusals.imu_non_finite);
+            return Err(Error::NonFinite {
+                field: "imu deltas",
+            });
+        }
+        if self.imu_clock_us != Some(d.t_start_us) {
+            return self.push_imu(&s);
+        }
+        let dt_us = d.dt_us();
+        if dt_us == 0 || !self.initialized {
+            return self.push_imu(&s);
+        }
+        checked_imu(&s).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
+        let max_w = self.config.max_gyro_rad_s;
+        let max_f = self.config.max_accel_m_s2;
+        if s.gyro_rad_s.iter().any(|v| v.abs() > max_w)
+            || s.accel_m_s2.iter().any(|v| v.abs() > max_f)
+        {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu",
+                reason: "above the configured max_gyro_rad_s or max_accel_m_s2",
+            });
+        }
+        let step_s: T = us_to_s(dt_us);
+        let gyro = d.delta_angle_rad / step_s;
+        let half_turn =
+            crate::geo::quaternion_from_rotation_vector(&(d.delta_angle_rad * T::lit(-0.5)));
+        let accel = (half_turn * d.delta_velocity_m_s) / step_s;
+        let mean_accel = d.delta_velocity_m_s / step_s;
+        if dt_us > self.config.max_imu_step_us {
+            return self.step(s, dt_us, &gyro, &mean_accel);
+        }
+        self.predict(s, dt_us, &gyro, &accel, &mean_accel)
+    }
+
+    /// One step of `dt_us` ending at sample `s` with the rate and specific
+    /// force held over it: a gap (`StepTooLong`), the clock alone before
+    /// initialization, or a prediction.
+    fn step(
+        &mut self,
+        s: Imu<T>,
+        dt_us: u64,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+    ) -> Result<(), Error> {
         if dt_us > self.config.max_imu_step_us {
             if self.initialized {
                 // A gap adds the noise of at most `MAX_GAP_NOISE_US`: beyond
@@ -577,8 +644,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 process::add_process_noise(
                     &mut p,
                     &self.nav_state(),
-                    &gyro,
-                    &accel,
+                    gyro,
+                    accel,
                     us_to_s(dt_us.min(MAX_GAP_NOISE_US)),
                     &self.config,
                     &self.extra_intensity,
@@ -603,19 +670,28 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.accumulate_accel(&s.accel_m_s2);
             return Ok(());
         }
+        self.predict(s, dt_us, gyro, accel, accel)
+    }
+
+    /// The prediction of [`step`](Self::step): the state with `accel`
+    /// rotated at mid-step ([`process::propagate`]), the covariance with
+    /// `jacobian_accel` (the mean specific force in the body frame at the
+    /// step's start).
+    fn predict(
+        &mut self,
+        s: Imu<T>,
+        dt_us: u64,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+        jacobian_accel: &Vector3<T>,
+    ) -> Result<(), Error> {
         let dt: T = us_to_s(dt_us);
-        let x16 = process::propagate(
-            &self.nav_state(),
-            &gyro,
-            &accel,
-            dt,
-            self.config.gravity_m_s2,
-        );
+        let x16 = process::propagate(&self.nav_state(), gyro, accel, dt, self.config.gravity_m_s2);
         let mut p = process::predict_covariance(
             &self.p,
             &self.nav_state(),
-            &gyro,
-            &accel,
+            gyro,
+            jacobian_accel,
             dt,
             &self.config,
             &self.extra_intensity,

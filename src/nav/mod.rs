@@ -112,6 +112,7 @@ use crate::delay::{
     DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
     WhiteningFir,
 };
+use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::nav_core::check_position_kind;
 use crate::ekf16::state::{
     ACCEL_BIAS, GYRO_BIAS, POS, QUAT, VEL, attitude_covariance, quaternion_of,
@@ -316,6 +317,10 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// Timestamp of every history sample.
     times: SampleTimes<HIST>,
     forward: ForwardReckoner<T, HIST>,
+    /// Delayed samples read at the horizon since the horizon EKF's time.
+    deltas: DeltaAccumulator<T>,
+    /// The horizon EKF's prediction period, µs (0: every IMU sample).
+    filter_period_us: u64,
     mags: Ring<Mag<T>, MAG_QUEUE>,
     last_imu: Option<Imu<T>>,
     imu_clock: StreamClock,
@@ -358,6 +363,18 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 reason: "history too short for the largest delay at the IMU rate",
             });
         }
+        let rate = config.filter_rate_hz;
+        if !(rate.is_finite() && rate >= T::zero()) {
+            return Err(Error::InvalidConfig {
+                field: "filter_rate_hz",
+                reason: "must be finite and not negative",
+            });
+        }
+        let filter_period_us = if rate > T::zero() && rate < config.imu_rate_hz {
+            (T::lit(1e6) / rate).round().as_f64() as u64
+        } else {
+            0
+        };
         Ok(Self {
             config,
             ekf: Ekf16::new(config.ekf)?,
@@ -368,6 +385,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             history: FractionalDelayLine::new(),
             times: SampleTimes::new(),
             forward: ForwardReckoner::new(),
+            deltas: DeltaAccumulator::new(),
+            filter_period_us,
             mags: Ring::new(Mag {
                 t_us: 0,
                 field_body: Vector3::zeros(),
@@ -523,6 +542,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.history.clear();
         self.times.clear();
         self.forward.reset();
+        self.deltas.clear();
         self.mags.clear();
         self.last_reset = Some(ResetRecord {
             t_us: self.imu_clock.last(),
@@ -626,7 +646,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let target = t_us.checked_sub(self.delay_us())?;
         self.history.max_delay_samples()?;
         let oldest = self.times.oldest()?;
-        let Some(horizon) = self.ekf.time_us() else {
+        let Some(horizon) = self.horizon_us() else {
             return Some(target);
         };
         if target <= horizon {
@@ -645,8 +665,19 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
     }
 
-    /// Steps the horizon EKF to `t_h` with the history read at eq. (15)'s delays.
-    fn step_horizon(&mut self, t_us: u64, t_h: u64) {
+    /// The horizon: the newest instant read from the history (the horizon
+    /// EKF's time, or later by the samples accumulated for its next step).
+    fn horizon_us(&self) -> Option<u64> {
+        self.deltas.end_us().max(self.ekf.time_us())
+    }
+
+    /// Moves the horizon to `t_h` with the history read at eq. (15)'s
+    /// delays. The sample goes to the horizon EKF at once when it predicts
+    /// at every sample (or is not initialized), else into the accumulated
+    /// step, which the EKF predicts over when it spans the filter period
+    /// (to half an IMU step) or when `force` asks for the EKF at `t_h` (a
+    /// fix to fuse). True when the EKF's time moved.
+    fn step_horizon(&mut self, t_us: u64, t_h: u64, force: bool) -> bool {
         let (d_f, d_w) = self.group_delays_s();
         let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
         // The whitened streams at t_h + D (the raw sensors' t_h), by time.
@@ -655,32 +686,63 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.history.read(d).ok()
         };
         let (Some(a), Some(w)) = (read(t_h + us(d_f)), read(t_h + us(d_w))) else {
-            return;
+            return false;
         };
         let sample = Imu {
             t_us: t_h,
             gyro_rad_s: w.fixed_rows::<3>(3).into_owned(),
             accel_m_s2: a.fixed_rows::<3>(0).into_owned(),
         };
-        match self.ekf.push_imu(&sample) {
+        let step_us = self
+            .deltas
+            .end_us()
+            .map_or(0, |end| t_h.saturating_sub(end));
+        let every_sample = self.filter_period_us == 0 || !self.ekf.is_initialized();
+        if every_sample || step_us > self.config.ekf.max_imu_step_us {
+            // A gap is one step of its own (the EKF grows P over it).
+            let flushed = self.flush_deltas();
+            match self.ekf.push_imu(&sample) {
+                Ok(()) => self.horizon_steps += 1,
+                Err(_) => bump(&mut self.refusals.horizon_refused),
+            }
+            self.deltas.restart(&sample);
+            return flushed || self.ekf.time_us() == Some(t_h);
+        }
+        self.deltas.push(&sample);
+        let due = self.deltas.elapsed_us().saturating_add(step_us / 2) >= self.filter_period_us;
+        (force || due) && self.flush_deltas()
+    }
+
+    /// Predicts the horizon EKF over the accumulated step; true when it
+    /// moved the EKF's time.
+    fn flush_deltas(&mut self) -> bool {
+        let before = self.ekf.time_us();
+        let Some(deltas) = self.deltas.take() else {
+            return false;
+        };
+        match self.ekf.push_imu_deltas(&deltas) {
             Ok(()) => self.horizon_steps += 1,
             Err(_) => bump(&mut self.refusals.horizon_refused),
         }
+        self.ekf.time_us() != before
     }
 
     /// Steps the horizon to the instant a fix received at `t_fix` describes,
     /// `t_fix - tau`, when that lies between the horizon and the newest IMU
-    /// sample's horizon target (a fix arriving between IMU samples): the fix
-    /// is then fused at its own instant, not up to one IMU step early.
+    /// sample's horizon target (a fix arriving between IMU samples), and
+    /// brings the horizon EKF to the horizon: the fix is then fused at its
+    /// own instant, not up to one IMU step early or one filter step late.
     fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
-        let (Some(last), Some(horizon)) = (self.last_imu, self.ekf.time_us()) else {
+        let (Some(last), Some(horizon)) = (self.last_imu, self.horizon_us()) else {
             return;
         };
-        let Some(target) = t_fix_us.checked_sub(self.delay_us()) else {
-            return;
-        };
-        if target > horizon && target <= last.t_us {
-            self.step_horizon(last.t_us, target);
+        if let Some(target) = t_fix_us.checked_sub(self.delay_us())
+            && target > horizon
+            && target <= last.t_us
+        {
+            self.step_horizon(last.t_us, target, true);
+        }
+        if self.flush_deltas() || self.ekf.time_us() != Some(horizon) {
             self.drain_mags();
         }
     }
@@ -832,8 +894,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         self.last_imu = Some(s);
 
-        if let Some(t_h) = self.horizon_target(s.t_us, dt_us) {
-            self.step_horizon(s.t_us, t_h);
+        if let Some(t_h) = self.horizon_target(s.t_us, dt_us)
+            && self.step_horizon(s.t_us, t_h, false)
+        {
             self.drain_mags();
             self.correct_present();
         }
