@@ -513,10 +513,17 @@ macro_rules! nav_tests {
 
             /// Work over the last 5 s of a 20 s run with the delay `tau`.
             fn work_at(tau: f64) -> delaynav::nav::NavWork {
+                work_at_filter_rate(tau, 100.0)
+            }
+
+            /// As [`work_at`] with the horizon filter at `rate_hz`.
+            fn work_at_filter_rate(tau: f64, rate_hz: f64) -> delaynav::nav::NavWork {
                 let mode = DelayMode::Fixed {
                     delay_s: T::lit(tau),
                 };
-                let mut nav = DelayCompensatedNav::<T>::new(config(mode, 1000.0)).unwrap();
+                let mut c = config(mode, 1000.0);
+                c.filter_rate_hz = T::lit(rate_hz);
+                let mut nav = DelayCompensatedNav::<T>::new(c).unwrap();
                 let mut at_15 = None;
                 for event in fly(&lively(4), &Suite::simulator(), 20.0, |_| tau, None) {
                     feed(&mut nav, &event);
@@ -544,6 +551,11 @@ macro_rules! nav_tests {
                 // Two 4-tap reads, one propagation, one cursor move per
                 // sample; one EKF step per 10 samples (100 Hz filter).
                 assert_eq!(short.horizon_steps, 500);
+                // At 0 (or the IMU rate) the filter predicts at every sample;
+                // at 250 Hz every 4 samples.
+                assert_eq!(work_at_filter_rate(0.1, 0.0).horizon_steps, 5000);
+                assert_eq!(work_at_filter_rate(0.1, 1000.0).horizon_steps, 5000);
+                assert_eq!(work_at_filter_rate(0.1, 250.0).horizon_steps, 1250);
                 assert_eq!(short.forward_propagations, 5000);
                 assert_eq!(short.interpolation_taps, 8 * 5000);
                 assert_eq!(short.ring_cursor_moves, 5000);

@@ -31,7 +31,13 @@
 //!    whitened accelerometer `t - t_h - D_f` behind the newest sample, the
 //!    whitened gyroscope `t - t_h - D_w` (with `t - t_h = tau` these are
 //!    `tau_f` and `tau_f + D_f - D_w`), stamped `t_h`: the instant the raw
-//!    sensors saw.
+//!    sensors saw. The EKF predicts at `filter_rate_hz` (default 100 Hz):
+//!    the samples read at the horizon are accumulated into a delta angle
+//!    and a delta velocity with coning and sculling corrections
+//!    ([`DeltaAccumulator`](crate::ekf16::delta::DeltaAccumulator)) and the
+//!    EKF predicts once over the step when it spans the filter period, on
+//!    the timestamps ([`Ekf16::push_imu_deltas`]). At a rate of 0 (or at
+//!    or above the IMU rate) it predicts at every sample.
 //! 4. Forward reckoning: the present output state is propagated with the raw
 //!    sample, then corrected by the horizon EKF (below, and the derivation in
 //!    `src/nav/forward.rs` and `docs/nav.md`).
@@ -39,8 +45,9 @@
 //!    `f_w` the whitened accelerometer, stamped `t`.
 //!
 //! # GPS fix received at `t`
-//! It describes `t - tau`, which is the horizon: it is fused into the horizon
-//! EKF at once ([`GpsOutcome::Fused`]). A fix that arrives between IMU
+//! It describes `t - tau`, which is the horizon: the EKF predicts over the
+//! samples accumulated up to it and fuses it at once
+//! ([`GpsOutcome::Fused`]). A fix that arrives between IMU
 //! samples describes an instant up to one IMU step past the horizon; the
 //! horizon first steps there (one more EKF step, read from the history), so
 //! the fix is fused at its own instant. Its velocity goes to the delay loop,
@@ -52,7 +59,7 @@
 //! horizon when the horizon reaches `t_m` (eq. 15's `tau_m = tau_f + D_f`
 //! behind the present). They wait in a queue of [`MAG_QUEUE`] samples
 //! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
-//! time reaches theirs. A full queue drops its oldest sample
+//! time reaches theirs (at the first filter step at or after them). A full queue drops its oldest sample
 //! ([`NavRefusals::mag_dropped`]).
 //!
 //! # Forward reckoning in `O(1)`
@@ -61,8 +68,9 @@
 //! state is kept in the frame of the corrections applied before it, so the
 //! correction still due at `t_h` costs a fixed number of operations
 //! whatever the delay. Per IMU sample: two FIR passes, two Lagrange reads
-//! (`2 x 4` taps), one EKF step, one `propagate` for the present, one
-//! interpolation between two ring entries, one delay-loop push. See
+//! (`2 x 4` taps), one delta accumulation (one EKF step per filter
+//! period), one `propagate` for the present, one interpolation between two
+//! ring entries, one delay-loop push. See
 //! [`NavWork`] and the test that compares the counted work at two delays.
 //!
 //! # Initialization
@@ -200,7 +208,8 @@ pub struct NavRefusals {
 pub struct NavWork {
     /// IMU samples accepted.
     pub imu_samples: u64,
-    /// Horizon EKF steps.
+    /// Horizon EKF steps (one per filter period, or per IMU sample at the
+    /// IMU rate).
     pub horizon_steps: u64,
     /// `process::propagate` calls of the output predictor.
     pub forward_propagations: u64,
