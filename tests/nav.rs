@@ -548,8 +548,8 @@ macro_rules! nav_tests {
                 let long = work_at(0.5);
                 assert_eq!(short.imu_samples, 5000);
                 assert_eq!(short, long);
-                // Two 4-tap reads, one propagation, one cursor move per
-                // sample; one EKF step per 10 samples (100 Hz filter).
+                // One 4-tap read (equal group delays), one propagation, one
+                // cursor move per sample; one EKF step per 10 samples (100 Hz filter).
                 assert_eq!(short.horizon_steps, 500);
                 // At 0 (or the IMU rate) the filter predicts at every sample;
                 // at 250 Hz every 4 samples.
@@ -557,7 +557,7 @@ macro_rules! nav_tests {
                 assert_eq!(work_at_filter_rate(0.1, 1000.0).horizon_steps, 5000);
                 assert_eq!(work_at_filter_rate(0.1, 250.0).horizon_steps, 1250);
                 assert_eq!(short.forward_propagations, 5000);
-                assert_eq!(short.interpolation_taps, 8 * 5000);
+                assert_eq!(short.interpolation_taps, 4 * 5000);
                 assert_eq!(short.ring_cursor_moves, 5000);
             }
 

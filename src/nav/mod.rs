@@ -68,7 +68,8 @@
 //! state is kept in the frame of the corrections applied before it, so the
 //! correction still due at `t_h` costs a fixed number of operations
 //! whatever the delay. Per IMU sample: two FIR passes, two Lagrange reads
-//! (`2 x 4` taps), one delta accumulation (one EKF step per filter
+//! (`2 x 4` taps; one when the group delays are equal, as with the default
+//! pass-through), one delta accumulation (one EKF step per filter
 //! period), one `propagate` for the present, one interpolation between two
 //! ring entries, one delay-loop push. See
 //! [`NavWork`] and the test that compares the counted work at two delays.
@@ -694,7 +695,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
             self.history.read(d).ok()
         };
-        let (Some(a), Some(w)) = (read(t_h + us(d_f)), read(t_h + us(d_w))) else {
+        // Equal group delays (pass-through whitening): one read holds both.
+        let a = read(t_h + us(d_f));
+        let w = if d_w == d_f { a } else { read(t_h + us(d_w)) };
+        let (Some(a), Some(w)) = (a, w) else {
             return false;
         };
         let sample = Imu {
