@@ -280,6 +280,10 @@ pub(crate) type GpsBlockModel<T, const N: usize> = (Vector3<T>, SMatrix<T, 3, N>
 #[derive(Debug, Clone)]
 pub(crate) struct NavCore<T: Scalar, const N: usize> {
     config: Ekf16Config<T>,
+    /// The unit Earth field in NED of the configured inclination and
+    /// declination (computed once: four trigonometric calls per
+    /// magnetometer sample saved).
+    field_ned: Vector3<T>,
     x: SVector<T, N>,
     p: SMatrix<T, N, N>,
     /// Extra states (indices >= 16): initial values, variances, intensities.
@@ -333,6 +337,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         let mut core = Self {
             config,
+            field_ned: magnetic_field_ned(config.mag_inclination_rad, config.mag_declination_rad),
             x: SVector::zeros(),
             p: SMatrix::zeros(),
             extra_initial: SVector::zeros(),
@@ -1061,7 +1066,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let x16 = self.nav_state();
         let euler = euler_from_quaternion(&quaternion_of(&x16));
         let (roll, pitch) = (euler.x, euler.y);
-        let field_ned = magnetic_field_ned(c.mag_inclination_rad, c.mag_declination_rad);
+        let field_ned = self.field_ned;
         let heading_mag =
             tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad);
         let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);
