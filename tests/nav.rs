@@ -542,6 +542,30 @@ macro_rules! nav_tests {
                 }
             }
 
+            /// The magnetometer keeps being fused after alignment whatever
+            /// the horizon filter's rate (at every sample, 100 Hz, 250 Hz).
+            #[test]
+            fn magnetometer_is_fused_at_every_filter_rate() {
+                for rate in [0.0, 100.0, 250.0] {
+                    let mode = DelayMode::Fixed {
+                        delay_s: T::lit(0.1),
+                    };
+                    let mut c = config(mode, 1000.0);
+                    c.filter_rate_hz = T::lit(rate);
+                    let mut nav = DelayCompensatedNav::<T>::new(c).unwrap();
+                    for event in fly(&lively(4), &Suite::simulator(), 5.0, |_| 0.1, None) {
+                        feed(&mut nav, &event);
+                    }
+                    let ekf = nav.horizon_filter();
+                    let last = ekf.last_mag_fusion().expect("a magnetometer fusion").t_us;
+                    let t = ekf.time_us().unwrap();
+                    assert!(
+                        t - last <= 150_000,
+                        "rate {rate}: last magnetometer fusion at {last} us, filter at {t} us"
+                    );
+                }
+            }
+
             #[test]
             fn work_per_sample_does_not_grow_with_the_delay() {
                 let short = work_at(0.1);

@@ -59,7 +59,9 @@
 //! horizon when the horizon reaches `t_m` (eq. 15's `tau_m = tau_f + D_f`
 //! behind the present). They wait in a queue of [`MAG_QUEUE`] samples
 //! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
-//! time reaches theirs (at the first filter step at or after them). A full queue drops its oldest sample
+//! time reaches theirs (at the first filter step at or after them; the
+//! fusion runs at the IMU sample after that step, the EKF unmoved, so that
+//! no call does a prediction and a fusion together). A full queue drops its oldest sample
 //! ([`NavRefusals::mag_dropped`]).
 //!
 //! # Forward reckoning in `O(1)`
@@ -329,6 +331,8 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     forward: ForwardReckoner<T, HIST>,
     /// Delayed samples read at the horizon since the horizon EKF's time.
     deltas: DeltaAccumulator<T>,
+    /// The horizon EKF moved since the magnetometer queue was last drained.
+    mags_due: bool,
     /// The horizon EKF's prediction period, µs (0: every IMU sample).
     filter_period_us: u64,
     mags: Ring<Mag<T>, MAG_QUEUE>,
@@ -396,6 +400,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             times: SampleTimes::new(),
             forward: ForwardReckoner::new(),
             deltas: DeltaAccumulator::new(),
+            mags_due: false,
             filter_period_us,
             mags: Ring::new(Mag {
                 t_us: 0,
@@ -553,6 +558,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.times.clear();
         self.forward.reset();
         self.deltas.clear();
+        self.mags_due = false;
         self.mags.clear();
         self.last_reset = Some(ResetRecord {
             t_us: self.imu_clock.last(),
@@ -714,6 +720,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         if every_sample || step_us > self.config.ekf.max_imu_step_us {
             // A gap is one step of its own (the EKF grows P over it).
             let flushed = self.flush_deltas();
+            self.fuse_due_mags();
             match self.ekf.push_imu(&sample) {
                 Ok(()) => self.horizon_steps += 1,
                 Err(_) => bump(&mut self.refusals.horizon_refused),
@@ -733,6 +740,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let Some(deltas) = self.deltas.take() else {
             return false;
         };
+        // Samples due at the EKF's present time are fused before it moves.
+        self.fuse_due_mags();
         match self.ekf.push_imu_deltas(&deltas) {
             Ok(()) => self.horizon_steps += 1,
             Err(_) => bump(&mut self.refusals.horizon_refused),
@@ -756,8 +765,34 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.step_horizon(last.t_us, target, true);
         }
         if self.flush_deltas() || self.ekf.time_us() != Some(horizon) {
+            self.horizon_moved();
+        }
+    }
+
+    /// After the horizon EKF moved: the magnetometer samples it reached are
+    /// fused at the next IMU sample ([`fuse_due_mags`](Self::fuse_due_mags)),
+    /// not in the same call as the prediction (or a GPS fusion): the EKF does
+    /// not move before then, so they are fused at the same state time, and
+    /// no single call does a prediction, a GPS and a magnetometer fusion.
+    /// Before initialization they go to the EKF at once (the alignment waits
+    /// for them).
+    fn horizon_moved(&mut self) {
+        if self.ekf.is_initialized() {
+            self.mags_due = true;
+        } else {
             self.drain_mags();
         }
+    }
+
+    /// Fuses the magnetometer samples the horizon EKF reached at its last
+    /// move; true when there were some to look at.
+    fn fuse_due_mags(&mut self) -> bool {
+        if !self.mags_due {
+            return false;
+        }
+        self.mags_due = false;
+        self.drain_mags();
+        true
     }
 
     /// Right after the horizon EKF initialized itself from a fix: when the
@@ -907,10 +942,13 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         self.last_imu = Some(s);
 
-        if let Some(t_h) = self.horizon_target(s.t_us, dt_us)
-            && self.step_horizon(s.t_us, t_h, false)
-        {
-            self.drain_mags();
+        let stepped = self
+            .horizon_target(s.t_us, dt_us)
+            .is_some_and(|t_h| self.step_horizon(s.t_us, t_h, false));
+        if stepped {
+            self.horizon_moved();
+            self.correct_present();
+        } else if self.fuse_due_mags() {
             self.correct_present();
         }
 
