@@ -34,7 +34,7 @@
 //!    sensors saw. The EKF predicts at `filter_rate_hz` (default 100 Hz):
 //!    the samples read at the horizon are accumulated into a delta angle
 //!    and a delta velocity with coning and sculling corrections
-//!    ([`DeltaAccumulator`](crate::ekf16::delta::DeltaAccumulator)) and the
+//!    ([`DeltaAccumulator`]) and the
 //!    EKF predicts once over the step when it spans the filter period, on
 //!    the timestamps ([`Ekf16::push_imu_deltas`]). At a rate of 0 (or at
 //!    or above the IMU rate) it predicts at every sample.
