@@ -25,19 +25,14 @@
 //! A failing case is shrunk by proptest, then by dropping operations one at
 //! a time ([`minimize`]), and printed as `start` and `ops`.
 //!
-//! One known bug, kept as an ignored test with its minimal input, is left
-//! out of the default machines (three more, tiny reported accuracies
-//! [`tiny_speed_accuracy`], NED fixes at the largest floats
-//! [`nav_huge_ned_fix`] and the navigator's EKF counters going back to zero
-//! [`nav_keeps_ekf_refusals`], are fixed: their inputs are in every machine
-//! and their minimal cases run as regression tests):
-//! - long IMU gaps ([`long_imu_gap`]): no jump ahead beyond 1 min, no
-//!   `u64::MAX` or random absolute stamps after the clock started
-//!   (`u64::MAX` stamps are in [`u64_max_stamps_then_back`] and
-//!   [`nav_estimated_imu_near_u64_max`]).
-//!
-//! The ignored `full_machine_*` tests run without these allowances
-//! (`cargo test --all-features --test push_api -- --ignored`).
+//! Fixed bugs keep their minimal cases as regression tests (tiny reported
+//! accuracies [`tiny_speed_accuracy`], NED fixes at the largest floats
+//! [`nav_huge_ned_fix`], the navigator's EKF counters going back to zero
+//! [`nav_keeps_ekf_refusals`], long IMU gaps [`long_imu_gap`]). The default
+//! machines keep jumps ahead below 1 min and no `u64::MAX` or random
+//! absolute stamps after the clock started (`u64::MAX` stamps are in
+//! [`u64_max_stamps_then_back`] and [`nav_estimated_imu_near_u64_max`]); the
+//! `full_machine_*` tests run without these allowances.
 //!
 //! `PROPTEST_CASES` raises the case count (default [`DEFAULT_CASES`]).
 
@@ -104,8 +99,8 @@ enum Op {
 }
 
 /// Time steps; `full` adds jumps ahead of an hour and more (1 h, 10 h,
-/// `u64::MAX`, anywhere), which the known bug of [`long_imu_gap`] trips
-/// (without, jumps ahead stop at 1 min).
+/// `u64::MAX`, anywhere), the gaps of [`long_imu_gap`] (without, jumps
+/// ahead stop at 1 min).
 fn time(full: bool) -> impl Strategy<Value = Time> {
     let anywhere = if full {
         prop_oneof![Just(0u64), Just(u64::MAX), Just(u64::MAX - 1), any::<u64>()].boxed()
@@ -690,25 +685,21 @@ macro_rules! machines {
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_estimated() {
                 machine(nav_estimated, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_fixed() {
                 machine(nav_fixed, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_ekf16() {
                 machine(ekf16, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_aekf17() {
                 machine(aekf17, true);
             }
@@ -773,18 +764,16 @@ fn u64_max_stamps_then_back() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Known bug: an IMU gap of 10 h breaks the covariance of every estimator
+/// Fixed bug: an IMU gap of 10 h broke the covariance of every estimator
 /// in `f32` (negative diagonal after the next GPS fusion), longer ones in
-/// `f64` too (1000 h: `AugmentedEkf17`; 2^58 µs: all); 2 h already break
+/// `f64` too (1000 h: `AugmentedEkf17`; 2^58 µs: all); 2 h broke
 /// `AugmentedEkf17` in `f32` right after a tilted one-sample alignment (the
 /// second case, from the machine with 2000 cases), and three jumps of
-/// 10 min (30 min of IMU gap) break its delay variance in `f64` (the third). Cause:
-/// `src/ekf16/nav_core.rs`, the `StepTooLong` branch of `push_imu` adds the
-/// process noise of the whole gap to `P` with no bound (`self.p + q`), so
-/// the attitude and velocity variances leave the range a later update can
-/// handle in floating point. Found by the machine (`full_machine_*`).
+/// 10 min (30 min of IMU gap) broke its delay variance in `f64` (the third).
+/// The `StepTooLong` branch of `push_imu` (`src/ekf16/nav_core.rs`) added the
+/// process noise of the whole gap to `P`; it now adds at most
+/// `MAX_GAP_NOISE_US` (1 min) of it. Found by the machine (`full_machine_*`).
 #[test]
-#[ignore = "reason: long IMU gap: P + Q(gap) unbounded in src/ekf16/nav_core.rs push_imu (StepTooLong)"]
 fn long_imu_gap() {
     let mut failures = Vec::new();
     for gap_us in [36_000_000_000u64, 3_600_000_000_000, 1 << 58] {
