@@ -22,24 +22,19 @@
 //!   at least one ([`RefusalCounters`]; for the navigator also
 //!   [`NavRefusals`]);
 //! - a fix answered `GpsOutcome::Waiting` (held until the filter can align)
-//!   moved no counter: waiting is not a refusal.
+//!   moved no GPS refusal counter: waiting is not a refusal.
 //!
 //! A failing case is shrunk by proptest, then by dropping operations one at
 //! a time ([`minimize`]), and printed as `start` and `ops`.
 //!
-//! One known bug, kept as an ignored test with its minimal input, is left
-//! out of the default machines (three more, tiny reported accuracies
-//! [`tiny_speed_accuracy`], NED fixes at the largest floats
-//! [`nav_huge_ned_fix`] and the navigator's EKF counters going back to zero
-//! [`nav_keeps_ekf_refusals`], are fixed: their inputs are in every machine
-//! and their minimal cases run as regression tests):
-//! - long IMU gaps ([`long_imu_gap`]): no jump ahead beyond 1 min, no
-//!   `u64::MAX` or random absolute stamps after the clock started
-//!   (`u64::MAX` stamps are in [`u64_max_stamps_then_back`] and
-//!   [`nav_estimated_imu_near_u64_max`]).
-//!
-//! The ignored `full_machine_*` tests run without these allowances
-//! (`cargo test --all-features --test push_api -- --ignored`).
+//! Fixed bugs keep their minimal cases as regression tests (tiny reported
+//! accuracies [`tiny_speed_accuracy`], NED fixes at the largest floats
+//! [`nav_huge_ned_fix`], the navigator's EKF counters going back to zero
+//! [`nav_keeps_ekf_refusals`], long IMU gaps [`long_imu_gap`]). The default
+//! machines keep jumps ahead below 1 min and no `u64::MAX` or random
+//! absolute stamps after the clock started (`u64::MAX` stamps are in
+//! [`u64_max_stamps_then_back`] and [`nav_estimated_imu_near_u64_max`]); the
+//! `full_machine_*` tests run without these allowances.
 //!
 //! `PROPTEST_CASES` raises the case count (default [`DEFAULT_CASES`]).
 //!
@@ -110,8 +105,8 @@ pub(crate) enum Op {
 }
 
 /// Time steps; `full` adds jumps ahead of an hour and more (1 h, 10 h,
-/// `u64::MAX`, anywhere), which the known bug of [`long_imu_gap`] trips
-/// (without, jumps ahead stop at 1 min).
+/// `u64::MAX`, anywhere), the gaps of [`long_imu_gap`] (without, jumps
+/// ahead stop at 1 min).
 fn time(full: bool) -> impl Strategy<Value = Time> {
     let anywhere = if full {
         prop_oneof![Just(0u64), Just(u64::MAX), Just(u64::MAX - 1), any::<u64>()].boxed()
@@ -248,6 +243,8 @@ pub(crate) trait Subject<T: Scalar>: Navigator<T> {
     fn refusal_sums(&self) -> (u64, u64);
     /// The filter's raw state (16 navigation states) and full covariance.
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>);
+    /// Sum of the counters of refused GPS fixes (its own and its EKF's).
+    fn gps_refusals(&self) -> u64;
     /// `reset()` where the estimator has one (a no-op otherwise).
     fn reset(&mut self) {}
 }
@@ -310,6 +307,35 @@ fn nav_sum(c: &NavRefusals) -> u64 {
     )
 }
 
+fn ekf_gps(c: &RefusalCounters) -> u64 {
+    [
+        c.gps_invalid,
+        c.gps_time,
+        c.gps_position_rejected,
+        c.gps_velocity_rejected,
+        c.gps_mixed_frames,
+        c.gps_position_resets,
+        c.gps_velocity_resets,
+        c.gps_divergence_resets,
+    ]
+    .into_iter()
+    .map(u64::from)
+    .sum()
+}
+
+fn nav_gps(c: &NavRefusals) -> u64 {
+    [
+        c.gps_invalid,
+        c.gps_time,
+        c.gps_accuracy,
+        c.gps_ahead,
+        c.gps_mixed_frames,
+    ]
+    .into_iter()
+    .map(u64::from)
+    .sum()
+}
+
 fn dynamic<T: Scalar, const N: usize>(p: &nalgebra::SMatrix<T, N, N>) -> DMatrix<T> {
     DMatrix::from_iterator(N, N, p.iter().copied())
 }
@@ -317,6 +343,9 @@ fn dynamic<T: Scalar, const N: usize>(p: &nalgebra::SMatrix<T, N, N>) -> DMatrix
 impl<T: Scalar> Subject<T> for Ekf16<T> {
     fn refusal_sums(&self) -> (u64, u64) {
         (0, ekf_sum(&self.refusals()))
+    }
+    fn gps_refusals(&self) -> u64 {
+        ekf_gps(&self.refusals())
     }
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
         (*self.state_vector(), dynamic(self.covariance()))
@@ -327,6 +356,9 @@ impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
     fn refusal_sums(&self) -> (u64, u64) {
         (0, ekf_sum(&self.refusals()))
     }
+    fn gps_refusals(&self) -> u64 {
+        ekf_gps(&self.refusals())
+    }
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
         let x = self.state_vector().fixed_rows::<16>(0).into_owned();
         (x, dynamic(self.covariance()))
@@ -336,6 +368,9 @@ impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
 impl<T: Scalar> Subject<T> for DelayCompensatedNav<T> {
     fn refusal_sums(&self) -> (u64, u64) {
         (nav_sum(&self.refusals()), ekf_sum(&self.ekf_refusals()))
+    }
+    fn gps_refusals(&self) -> u64 {
+        nav_gps(&self.refusals()) + ekf_gps(&self.ekf_refusals())
     }
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
         let ekf = self.horizon_filter();
@@ -465,19 +500,21 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
     }
 
     /// A fix answered `GpsOutcome::Waiting` (held until the filter can
-    /// align) is not a refusal: no counter may move.
+    /// align) is not a refusal: no GPS counter may move. (Other counters
+    /// may: the horizon stepping to the fix can refuse a stored IMU sample
+    /// in the delay loop.)
     fn gps(&mut self, fix: Gps<T>) -> Result<(), TestCaseError> {
-        let before = self.s.refusal_sums();
+        let before = self.s.gps_refusals();
         let mut waiting = false;
         self.call("gps", |s| {
             let result = s.push_gps(&fix);
             waiting = matches!(result, Ok(GpsOutcome::Waiting));
             refusals_of(&result, gps_gated)
         })?;
-        let after = self.s.refusal_sums();
+        let after = self.s.gps_refusals();
         prop_assert!(
             !waiting || after == before,
-            "call {}: a fix answered Waiting moved the refusal counters {before:?} -> {after:?}",
+            "call {}: a fix answered Waiting moved the GPS refusal counters {before} -> {after}",
             self.calls
         );
         Ok(())
@@ -711,25 +748,21 @@ macro_rules! machines {
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_estimated() {
                 machine(nav_estimated, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_nav_fixed() {
                 machine(nav_fixed, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_ekf16() {
                 machine(ekf16, true);
             }
 
             #[test]
-            #[ignore = "reason: known bug long_imu_gap"]
             fn full_machine_aekf17() {
                 machine(aekf17, true);
             }
@@ -819,18 +852,16 @@ fn u64_max_stamps_then_back() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Known bug: an IMU gap of 10 h breaks the covariance of every estimator
+/// Fixed bug: an IMU gap of 10 h broke the covariance of every estimator
 /// in `f32` (negative diagonal after the next GPS fusion), longer ones in
-/// `f64` too (1000 h: `AugmentedEkf17`; 2^58 µs: all); 2 h already break
+/// `f64` too (1000 h: `AugmentedEkf17`; 2^58 µs: all); 2 h broke
 /// `AugmentedEkf17` in `f32` right after a tilted one-sample alignment (the
 /// second case, from the machine with 2000 cases), and three jumps of
-/// 10 min (30 min of IMU gap) break its delay variance in `f64` (the third). Cause:
-/// `src/ekf16/nav_core.rs`, the `StepTooLong` branch of `push_imu` adds the
-/// process noise of the whole gap to `P` with no bound (`self.p + q`), so
-/// the attitude and velocity variances leave the range a later update can
-/// handle in floating point. Found by the machine (`full_machine_*`).
+/// 10 min (30 min of IMU gap) broke its delay variance in `f64` (the third).
+/// The `StepTooLong` branch of `push_imu` (`src/ekf16/nav_core.rs`) added the
+/// process noise of the whole gap to `P`; it now adds at most
+/// `MAX_GAP_NOISE_US` (1 min) of it. Found by the machine (`full_machine_*`).
 #[test]
-#[ignore = "reason: long IMU gap: P + Q(gap) unbounded in src/ekf16/nav_core.rs push_imu (StepTooLong)"]
 fn long_imu_gap() {
     let mut failures = Vec::new();
     for gap_us in [36_000_000_000u64, 3_600_000_000_000, 1 << 58] {

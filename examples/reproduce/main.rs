@@ -144,7 +144,14 @@ struct Args {
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
     delay_suite: bool,
+    /// Prediction rate of the navigator's horizon filter, Hz; 0 predicts at
+    /// every IMU sample [default: `NavConfig`'s].
+    #[arg(long)]
+    filter_rate_hz: Option<f64>,
 }
+
+/// `--filter-rate-hz`, set once from the arguments.
+static FILTER_RATE_HZ: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
 
 /// One simulated run, shared by every estimator.
 struct RunSetup {
@@ -400,6 +407,9 @@ fn nav<T: Scalar>(
     };
     if let Some(std) = initial_std_s {
         config.delay_loop.fusion.initial_std_s = T::lit(std);
+    }
+    if let Some(&rate) = FILTER_RATE_HZ.get() {
+        config.filter_rate_hz = T::lit(rate);
     }
     DelayCompensatedNav::new(config).expect("valid navigator config")
 }
@@ -1591,6 +1601,9 @@ impl Progress {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    if let Some(rate) = args.filter_rate_hz {
+        FILTER_RATE_HZ.get_or_init(|| rate);
+    }
     if args.faults {
         let scale = args.duration.unwrap_or(60.0) / 60.0;
         let results = faults::run(args.seed, scale);

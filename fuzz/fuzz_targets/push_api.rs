@@ -7,8 +7,8 @@
 //! are the machine's own: no panic, a finite sound state after every call,
 //! every refusal counted. libFuzzer keeps the inputs whose case reaches new
 //! code; a crash prints the case.
-//! The time steps are the default machine's: jumps ahead stop at 1 min (the
-//! known bug `long_imu_gap` of that file is left out, as there).
+//! The time steps are the full machine's: jumps ahead of hours, `u64::MAX`
+//! and anywhere.
 #![no_main]
 
 #[path = "../../tests/push_api.rs"]
@@ -41,7 +41,7 @@ fn seed(data: &[u8]) -> [u8; 32] {
 fuzz_target!(|data: &[u8]| {
     let rng = TestRng::from_seed(RngAlgorithm::ChaCha, &seed(data));
     let mut runner = TestRunner::new_with_rng(Config::default(), rng);
-    let Ok(tree) = push_api::case(false).new_tree(&mut runner) else {
+    let Ok(tree) = push_api::case(true).new_tree(&mut runner) else {
         return;
     };
     let (start, ops) = tree.current();

@@ -52,8 +52,6 @@
 //! (`src/nav/timeline.rs`: 10 % dropped samples cost 18x tilt RMSE with
 //! the mean period).
 
-use core::cell::Cell;
-
 use nalgebra::SVector;
 
 use super::ring::Ring;
@@ -82,7 +80,6 @@ use crate::scalar::{Scalar, all_finite};
 #[derive(Debug, Clone)]
 pub struct FractionalDelayLine<T: Scalar, const CH: usize, const N: usize, const ORDER: usize> {
     ring: Ring<SVector<T, CH>, N>,
-    taps_read: Cell<u64>,
 }
 
 impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize> Default
@@ -110,7 +107,6 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
         };
         Self {
             ring: Ring::new(SVector::zeros()),
-            taps_read: Cell::new(0),
         }
     }
 
@@ -150,12 +146,6 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
     /// `ORDER + 1` samples are stored, `None` before.
     pub fn max_delay_samples(&self) -> Option<usize> {
         (self.ring.len() > ORDER).then(|| self.ring.len() - 1)
-    }
-
-    /// Total number of stored samples combined by all reads so far (each
-    /// read combines exactly `ORDER + 1`): a work counter.
-    pub fn taps_read(&self) -> u64 {
-        self.taps_read.get()
     }
 
     /// Stencil start and local position `t = d - s0` for a delay.
@@ -204,7 +194,6 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
                 out += x * w;
             }
         }
-        self.taps_read.set(self.taps_read.get() + Self::TAPS as u64);
         Ok(out)
     }
 

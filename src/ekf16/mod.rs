@@ -78,9 +78,11 @@
 //! and leave the filter unchanged; [`Ekf16::refusals`] counts them. An IMU
 //! gap longer than `max_imu_step_us` returns [`Error::StepTooLong`]: the
 //! state is not propagated, the clock moves to the sample and `P` grows by
-//! `Q` of the gap.
+//! `Q` of the gap, or of [`MAX_GAP_NOISE_US`] when the gap is longer (the
+//! state is then unknown anyway; the GPS block resets bring it back).
 
 pub mod config;
+pub mod delta;
 pub mod measurement;
 pub(crate) mod nav_core;
 pub mod process;
@@ -95,8 +97,8 @@ use crate::geo::LocalFrame;
 use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
-pub use nav_core::GpsBlock;
 use nav_core::NavCore;
+pub use nav_core::{GpsBlock, MAX_GAP_NOISE_US};
 use state::{NAV_STATES, StateCovariance, StateVector};
 
 /// How many samples were refused or gated out, by kind.
@@ -303,6 +305,16 @@ impl<T: Scalar> Ekf16<T> {
     /// The covariance (16x16).
     pub fn covariance(&self) -> &StateCovariance<T> {
         self.core.covariance()
+    }
+
+    /// One prediction over a filter step from its delta angle and delta
+    /// velocity ([`delta::DeltaAccumulator`], coning and sculling
+    /// corrected), instead of one [`push_imu`](Navigator::push_imu) per
+    /// sample: the multi-rate filter of the navigator. The step must start
+    /// at the filter's time; otherwise (and before initialization) its last
+    /// sample is pushed as an IMU sample. Refusals as for `push_imu`.
+    pub fn push_imu_deltas(&mut self, deltas: &delta::ImuDeltas<T>) -> Result<(), Error> {
+        self.core.push_deltas(deltas)
     }
 
     crate::ekf16::nav_core::core_accessors!();

@@ -58,6 +58,7 @@
 //! - No allocation: every buffer is a fixed-size nalgebra type.
 
 use super::config::Ekf16Config;
+use super::delta::ImuDeltas;
 use super::measurement;
 use super::process;
 use super::state::{
@@ -78,6 +79,11 @@ use crate::sensors::{
     checked_mag,
 };
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
+
+/// The longest stretch of an IMU gap whose process noise is added to `P`,
+/// µs (a gap longer than `max_imu_step_us` is not integrated; `P` grows by
+/// the noise of `min(gap, MAX_GAP_NOISE_US)`).
+pub const MAX_GAP_NOISE_US: u64 = 60_000_000;
 
 /// One state appended after the 16 navigation states: a random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -274,6 +280,10 @@ pub(crate) type GpsBlockModel<T, const N: usize> = (Vector3<T>, SMatrix<T, 3, N>
 #[derive(Debug, Clone)]
 pub(crate) struct NavCore<T: Scalar, const N: usize> {
     config: Ekf16Config<T>,
+    /// The unit Earth field in NED of the configured inclination and
+    /// declination (computed once: four trigonometric calls per
+    /// magnetometer sample saved).
+    field_ned: Vector3<T>,
     x: SVector<T, N>,
     p: SMatrix<T, N, N>,
     /// Extra states (indices >= 16): initial values, variances, intensities.
@@ -330,6 +340,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         let mut core = Self {
             config,
+            field_ned: magnetic_field_ned(config.mag_inclination_rad, config.mag_declination_rad),
             x: SVector::zeros(),
             p: SMatrix::zeros(),
             extra_initial: SVector::zeros(),
@@ -570,15 +581,84 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             ),
             None => (s.gyro_rad_s, s.accel_m_s2),
         };
+        self.step(s, dt_us, &gyro, &accel)
+    }
+
+    /// Feeds the delta angle and delta velocity of a filter step
+    /// ([`ImuDeltas`], accumulated from IMU samples with coning and
+    /// sculling corrections): one prediction over the whole step, as
+    /// [`push_imu`](Self::push_imu) does over one sample step, with the
+    /// same checks on the step's last sample and on the step's start (it
+    /// must be the state's time). Before initialization only the last
+    /// sample counts (clock, accelerometer mean).
+    ///
+    /// [`process::propagate`] holds the rate `w` and the specific force `f`
+    /// over the step and rotates `f` at mid-step; it is given
+    /// `w = Δθ / T` and `f = exp(-Δθ / 2) Δv / T` (`T` the step, s), so
+    /// that it adds exactly `R(q) Δv` to the velocity and turns the
+    /// attitude by `Δθ` (bias-corrected). The covariance is predicted with
+    /// the mean rate and specific force over the step, `Δθ / T`, `Δv / T`.
+    pub(crate) fn push_deltas(&mut self, d: &ImuDeltas<T>) -> Result<(), Error> {
+        let s = d.last;
+        if !(all_finite_fixed(&d.delta_angle_rad) && all_finite_fixed(&d.delta_velocity_m_s)) {
+            bump(&mut self.refusals.imu_non_finite);
+            return Err(Error::NonFinite {
+                field: "imu deltas",
+            });
+        }
+        if self.imu_clock_us != Some(d.t_start_us) {
+            return self.push_imu(&s);
+        }
+        let dt_us = d.dt_us();
+        if dt_us == 0 || !self.initialized {
+            return self.push_imu(&s);
+        }
+        checked_imu(&s).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
+        let max_w = self.config.max_gyro_rad_s;
+        let max_f = self.config.max_accel_m_s2;
+        if s.gyro_rad_s.iter().any(|v| v.abs() > max_w)
+            || s.accel_m_s2.iter().any(|v| v.abs() > max_f)
+        {
+            bump(&mut self.refusals.imu_out_of_range);
+            return Err(Error::OutOfRange {
+                field: "imu",
+                reason: "above the configured max_gyro_rad_s or max_accel_m_s2",
+            });
+        }
+        let step_s: T = us_to_s(dt_us);
+        let gyro = d.delta_angle_rad / step_s;
+        let half_turn =
+            crate::geo::quaternion_from_rotation_vector(&(d.delta_angle_rad * T::lit(-0.5)));
+        let accel = (half_turn * d.delta_velocity_m_s) / step_s;
+        let mean_accel = d.delta_velocity_m_s / step_s;
+        if dt_us > self.config.max_imu_step_us {
+            return self.step(s, dt_us, &gyro, &mean_accel);
+        }
+        self.predict(s, dt_us, &gyro, &accel, &mean_accel)
+    }
+
+    /// One step of `dt_us` ending at sample `s` with the rate and specific
+    /// force held over it: a gap (`StepTooLong`), the clock alone before
+    /// initialization, or a prediction.
+    fn step(
+        &mut self,
+        s: Imu<T>,
+        dt_us: u64,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+    ) -> Result<(), Error> {
         if dt_us > self.config.max_imu_step_us {
             if self.initialized {
+                // A gap adds the noise of at most `MAX_GAP_NOISE_US`: beyond
+                // it the state is unknown anyway, and larger variances leave
+                // the range a later update can handle in floating point.
                 let mut p = self.p;
                 process::add_process_noise(
                     &mut p,
                     &self.nav_state(),
-                    &gyro,
-                    &accel,
-                    us_to_s(dt_us),
+                    gyro,
+                    accel,
+                    us_to_s(dt_us.min(MAX_GAP_NOISE_US)),
                     &self.config,
                     &self.extra_intensity,
                 );
@@ -602,19 +682,28 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.accumulate_accel(&s.accel_m_s2);
             return Ok(());
         }
+        self.predict(s, dt_us, gyro, accel, accel)
+    }
+
+    /// The prediction of [`step`](Self::step): the state with `accel`
+    /// rotated at mid-step ([`process::propagate`]), the covariance with
+    /// `jacobian_accel` (the mean specific force in the body frame at the
+    /// step's start).
+    fn predict(
+        &mut self,
+        s: Imu<T>,
+        dt_us: u64,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+        jacobian_accel: &Vector3<T>,
+    ) -> Result<(), Error> {
         let dt: T = us_to_s(dt_us);
-        let x16 = process::propagate(
-            &self.nav_state(),
-            &gyro,
-            &accel,
-            dt,
-            self.config.gravity_m_s2,
-        );
+        let x16 = process::propagate(&self.nav_state(), gyro, accel, dt, self.config.gravity_m_s2);
         let mut p = process::predict_covariance(
             &self.p,
             &self.nav_state(),
-            &gyro,
-            &accel,
+            gyro,
+            jacobian_accel,
             dt,
             &self.config,
             &self.extra_intensity,
@@ -990,7 +1079,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let x16 = self.nav_state();
         let euler = euler_from_quaternion(&quaternion_of(&x16));
         let (roll, pitch) = (euler.x, euler.y);
-        let field_ned = magnetic_field_ned(c.mag_inclination_rad, c.mag_declination_rad);
+        let field_ned = self.field_ned;
         let heading_mag =
             tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad);
         let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);

@@ -108,6 +108,13 @@ pub struct NavConfig<T: Scalar> {
     /// jump; a GPS or magnetometer sample further ahead of the newest IMU
     /// sample is refused (`src/nav/timeline.rs`). Default 1 s.
     pub max_time_jump_us: u64,
+    /// Rate of the horizon filter's prediction, Hz: it predicts on the delta
+    /// angle and delta velocity accumulated from the delayed IMU samples
+    /// over `1 / filter_rate_hz` (coning and sculling corrected, see
+    /// `ekf16::delta`); the history, the output predictor and the delay
+    /// loop stay at the IMU rate. `0`, or a rate at or above `imu_rate_hz`,
+    /// predicts at every IMU sample. Default 100 Hz (`docs/nav.md`).
+    pub filter_rate_hz: T,
 }
 
 impl<T: Scalar> Default for NavConfig<T> {
@@ -127,6 +134,7 @@ impl<T: Scalar> Default for NavConfig<T> {
             gyro_whitening: WhiteningFilter::PassThrough,
             max_horizon_step_ratio: T::lit(2.0),
             max_time_jump_us: 1_000_000,
+            filter_rate_hz: T::lit(100.0),
         }
     }
 }
@@ -179,6 +187,7 @@ impl<T: Scalar> NavConfig<T> {
             T::one(),
         )?;
         check::count_at_least("max_time_jump_us", self.max_time_jump_us, 1)?;
+        check::not_negative("filter_rate_hz", self.filter_rate_hz)?;
         Ok(())
     }
 

@@ -31,7 +31,13 @@
 //!    whitened accelerometer `t - t_h - D_f` behind the newest sample, the
 //!    whitened gyroscope `t - t_h - D_w` (with `t - t_h = tau` these are
 //!    `tau_f` and `tau_f + D_f - D_w`), stamped `t_h`: the instant the raw
-//!    sensors saw.
+//!    sensors saw. The EKF predicts at `filter_rate_hz` (default 100 Hz):
+//!    the samples read at the horizon are accumulated into a delta angle
+//!    and a delta velocity with coning and sculling corrections
+//!    ([`DeltaAccumulator`]) and the
+//!    EKF predicts once over the step when it spans the filter period, on
+//!    the timestamps ([`Ekf16::push_imu_deltas`]). At a rate of 0 (or at
+//!    or above the IMU rate) it predicts at every sample.
 //! 4. Forward reckoning: the present output state is propagated with the raw
 //!    sample, then corrected by the horizon EKF (below, and the derivation in
 //!    `src/nav/forward.rs` and `docs/nav.md`).
@@ -39,8 +45,9 @@
 //!    `f_w` the whitened accelerometer, stamped `t`.
 //!
 //! # GPS fix received at `t`
-//! It describes `t - tau`, which is the horizon: it is fused into the horizon
-//! EKF at once ([`GpsOutcome::Fused`]). A fix that arrives between IMU
+//! It describes `t - tau`, which is the horizon: the EKF predicts over the
+//! samples accumulated up to it and fuses it at once
+//! ([`GpsOutcome::Fused`]). A fix that arrives between IMU
 //! samples describes an instant up to one IMU step past the horizon; the
 //! horizon first steps there (one more EKF step, read from the history), so
 //! the fix is fused at its own instant. Its velocity goes to the delay loop,
@@ -52,7 +59,9 @@
 //! horizon when the horizon reaches `t_m` (eq. 15's `tau_m = tau_f + D_f`
 //! behind the present). They wait in a queue of [`MAG_QUEUE`] samples
 //! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
-//! time reaches theirs. A full queue drops its oldest sample
+//! time reaches theirs (at the first filter step at or after them; the
+//! fusion runs at the IMU sample after that step, the EKF unmoved, so that
+//! no call does a prediction and a fusion together). A full queue drops its oldest sample
 //! ([`NavRefusals::mag_dropped`]).
 //!
 //! # Forward reckoning in `O(1)`
@@ -61,8 +70,10 @@
 //! state is kept in the frame of the corrections applied before it, so the
 //! correction still due at `t_h` costs a fixed number of operations
 //! whatever the delay. Per IMU sample: two FIR passes, two Lagrange reads
-//! (`2 x 4` taps), one EKF step, one `propagate` for the present, one
-//! interpolation between two ring entries, one delay-loop push. See
+//! (`2 x 4` taps; one when the group delays are equal, as with the default
+//! pass-through), one delta accumulation (one EKF step per filter
+//! period), one `propagate` for the present, one interpolation between two
+//! ring entries, one delay-loop push. See
 //! [`NavWork`] and the test that compares the counted work at two delays.
 //!
 //! # Initialization
@@ -112,6 +123,7 @@ use crate::delay::{
     DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
     WhiteningFir,
 };
+use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::nav_core::check_position_kind;
 use crate::ekf16::state::{
     ACCEL_BIAS, GYRO_BIAS, POS, QUAT, VEL, attitude_covariance, quaternion_of,
@@ -199,7 +211,8 @@ pub struct NavRefusals {
 pub struct NavWork {
     /// IMU samples accepted.
     pub imu_samples: u64,
-    /// Horizon EKF steps.
+    /// Horizon EKF steps (one per filter period, or per IMU sample at the
+    /// IMU rate).
     pub horizon_steps: u64,
     /// `process::propagate` calls of the output predictor.
     pub forward_propagations: u64,
@@ -313,9 +326,17 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     gyro_whitening: Whitening<T>,
     /// Whitened accelerometer (0..3) and gyroscope (3..6).
     history: FractionalDelayLine<T, 6, HIST, HISTORY_ORDER>,
+    /// Stored samples combined by the history's reads (a work counter).
+    interpolation_taps: u64,
     /// Timestamp of every history sample.
     times: SampleTimes<HIST>,
     forward: ForwardReckoner<T, HIST>,
+    /// Delayed samples read at the horizon since the horizon EKF's time.
+    deltas: DeltaAccumulator<T>,
+    /// The horizon EKF moved since the magnetometer queue was last drained.
+    mags_due: bool,
+    /// The horizon EKF's prediction period, µs (0: every IMU sample).
+    filter_period_us: u64,
     mags: Ring<Mag<T>, MAG_QUEUE>,
     last_imu: Option<Imu<T>>,
     imu_clock: StreamClock,
@@ -360,6 +381,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 bound: crate::error::Bound::AtLeast(needed),
             });
         }
+        let rate = config.filter_rate_hz;
+        let filter_period_us = if rate > T::zero() && rate < config.imu_rate_hz {
+            (T::lit(1e6) / rate).round().as_f64() as u64
+        } else {
+            0
+        };
         Ok(Self {
             config,
             ekf: Ekf16::new(config.ekf)?,
@@ -368,8 +395,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             accel_whitening,
             gyro_whitening,
             history: FractionalDelayLine::new(),
+            interpolation_taps: 0,
             times: SampleTimes::new(),
             forward: ForwardReckoner::new(),
+            deltas: DeltaAccumulator::new(),
+            mags_due: false,
+            filter_period_us,
             mags: Ring::new(Mag {
                 t_us: 0,
                 field_body: Vector3::zeros(),
@@ -483,7 +514,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             imu_samples: self.imu_samples,
             horizon_steps: self.horizon_steps,
             forward_propagations: self.forward.propagations(),
-            interpolation_taps: self.history.taps_read(),
+            interpolation_taps: self.interpolation_taps,
             ring_cursor_moves: self.forward.cursor_moves(),
             correlation_multiply_adds: self.delay_loop.multiply_adds(),
         }
@@ -525,6 +556,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.history.clear();
         self.times.clear();
         self.forward.reset();
+        self.deltas.clear();
+        self.mags_due = false;
         self.mags.clear();
         self.last_reset = Some(ResetRecord {
             t_us: self.imu_clock.last(),
@@ -628,7 +661,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let target = t_us.checked_sub(self.delay_us())?;
         self.history.max_delay_samples()?;
         let oldest = self.times.oldest()?;
-        let Some(horizon) = self.ekf.time_us() else {
+        let Some(horizon) = self.horizon_us() else {
             return Some(target);
         };
         if target <= horizon {
@@ -647,8 +680,19 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
     }
 
-    /// Steps the horizon EKF to `t_h` with the history read at eq. (15)'s delays.
-    fn step_horizon(&mut self, t_us: u64, t_h: u64) {
+    /// The horizon: the newest instant read from the history (the horizon
+    /// EKF's time, or later by the samples accumulated for its next step).
+    fn horizon_us(&self) -> Option<u64> {
+        self.deltas.end_us().max(self.ekf.time_us())
+    }
+
+    /// Moves the horizon to `t_h` with the history read at eq. (15)'s
+    /// delays. The sample goes to the horizon EKF at once when it predicts
+    /// at every sample (or is not initialized), else into the accumulated
+    /// step, which the EKF predicts over when it spans the filter period
+    /// (to half an IMU step) or when `force` asks for the EKF at `t_h` (a
+    /// fix to fuse). True when the EKF's time moved.
+    fn step_horizon(&mut self, t_us: u64, t_h: u64, force: bool) -> bool {
         let (d_f, d_w) = self.group_delays_s();
         let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
         // The whitened streams at t_h + D (the raw sensors' t_h), by time.
@@ -656,35 +700,103 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
             self.history.read(d).ok()
         };
-        let (Some(a), Some(w)) = (read(t_h + us(d_f)), read(t_h + us(d_w))) else {
-            return;
+        // Equal group delays (pass-through whitening): one read holds both.
+        let a = read(t_h + us(d_f));
+        let (w, reads) = if d_w == d_f {
+            (a, 1)
+        } else {
+            (read(t_h + us(d_w)), 2)
+        };
+        self.interpolation_taps += reads * (HISTORY_ORDER as u64 + 1);
+        let (Some(a), Some(w)) = (a, w) else {
+            return false;
         };
         let sample = Imu {
             t_us: t_h,
             gyro_rad_s: w.fixed_rows::<3>(3).into_owned(),
             accel_m_s2: a.fixed_rows::<3>(0).into_owned(),
         };
-        match self.ekf.push_imu(&sample) {
+        let step_us = self
+            .deltas
+            .end_us()
+            .map_or(0, |end| t_h.saturating_sub(end));
+        let every_sample = self.filter_period_us == 0 || !self.ekf.is_initialized();
+        if every_sample || step_us > self.config.ekf.max_imu_step_us {
+            // A gap is one step of its own (the EKF grows P over it).
+            let flushed = self.flush_deltas();
+            self.fuse_due_mags();
+            match self.ekf.push_imu(&sample) {
+                Ok(()) => self.horizon_steps += 1,
+                Err(_) => bump(&mut self.refusals.horizon_refused),
+            }
+            self.deltas.restart(&sample);
+            return flushed || self.ekf.time_us() == Some(t_h);
+        }
+        self.deltas.push(&sample);
+        let due = self.deltas.elapsed_us().saturating_add(step_us / 2) >= self.filter_period_us;
+        (force || due) && self.flush_deltas()
+    }
+
+    /// Predicts the horizon EKF over the accumulated step; true when it
+    /// moved the EKF's time.
+    fn flush_deltas(&mut self) -> bool {
+        let before = self.ekf.time_us();
+        let Some(deltas) = self.deltas.take() else {
+            return false;
+        };
+        // Samples due at the EKF's present time are fused before it moves.
+        self.fuse_due_mags();
+        match self.ekf.push_imu_deltas(&deltas) {
             Ok(()) => self.horizon_steps += 1,
             Err(_) => bump(&mut self.refusals.horizon_refused),
         }
+        self.ekf.time_us() != before
     }
 
     /// Steps the horizon to the instant a fix received at `t_fix` describes,
     /// `t_fix - tau`, when that lies between the horizon and the newest IMU
-    /// sample's horizon target (a fix arriving between IMU samples): the fix
-    /// is then fused at its own instant, not up to one IMU step early.
+    /// sample's horizon target (a fix arriving between IMU samples), and
+    /// brings the horizon EKF to the horizon: the fix is then fused at its
+    /// own instant, not up to one IMU step early or one filter step late.
     fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
-        let (Some(last), Some(horizon)) = (self.last_imu, self.ekf.time_us()) else {
+        let (Some(last), Some(horizon)) = (self.last_imu, self.horizon_us()) else {
             return;
         };
-        let Some(target) = t_fix_us.checked_sub(self.delay_us()) else {
-            return;
-        };
-        if target > horizon && target <= last.t_us {
-            self.step_horizon(last.t_us, target);
+        if let Some(target) = t_fix_us.checked_sub(self.delay_us())
+            && target > horizon
+            && target <= last.t_us
+        {
+            self.step_horizon(last.t_us, target, true);
+        }
+        if self.flush_deltas() || self.ekf.time_us() != Some(horizon) {
+            self.horizon_moved();
+        }
+    }
+
+    /// After the horizon EKF moved: the magnetometer samples it reached are
+    /// fused at the next IMU sample ([`fuse_due_mags`](Self::fuse_due_mags)),
+    /// not in the same call as the prediction (or a GPS fusion): the EKF does
+    /// not move before then, so they are fused at the same state time, and
+    /// no single call does a prediction, a GPS and a magnetometer fusion.
+    /// Before initialization they go to the EKF at once (the alignment waits
+    /// for them).
+    fn horizon_moved(&mut self) {
+        if self.ekf.is_initialized() {
+            self.mags_due = true;
+        } else {
             self.drain_mags();
         }
+    }
+
+    /// Fuses the magnetometer samples the horizon EKF reached at its last
+    /// move; true when there were some to look at.
+    fn fuse_due_mags(&mut self) -> bool {
+        if !self.mags_due {
+            return false;
+        }
+        self.mags_due = false;
+        self.drain_mags();
+        true
     }
 
     /// Right after the horizon EKF initialized itself from a fix: when the
@@ -834,9 +946,13 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }
         self.last_imu = Some(s);
 
-        if let Some(t_h) = self.horizon_target(s.t_us, dt_us) {
-            self.step_horizon(s.t_us, t_h);
-            self.drain_mags();
+        let stepped = self
+            .horizon_target(s.t_us, dt_us)
+            .is_some_and(|t_h| self.step_horizon(s.t_us, t_h, false));
+        if stepped {
+            self.horizon_moved();
+            self.correct_present();
+        } else if self.fuse_due_mags() {
             self.correct_present();
         }
 
