@@ -17,8 +17,10 @@
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
 //! true trajectory), `bound_heading_mag` (the same with a heading-only
-//! magnetometer, not a bound), the crate's estimators in `f64` and `f32`, and
-//! the peer `fusion_nav` (module `fusion_nav`).
+//! magnetometer, not a bound), `bound_calibrated` (the bound with the
+//! biases' prior of the IMU calibration below), the crate's estimators in
+//! `f64` and `f32`, `calibrated` (`proposed` starting from a pre-flight IMU bias calibration,
+//! [`imu_calibration`]), and the peer `fusion_nav` (module `fusion_nav`).
 //!
 //! Every figure is the mean over the seeds of one run's RMSE, counted
 //! after `skip_s` seconds (the convergence time), with the 95 % t-interval
@@ -317,6 +319,63 @@ fn run_proposed<T: Scalar>(s: &RunSetup) -> RunScore {
     score(nav::<T>(&s.config, mode, s.start.std_s), s, nav_covariance)
 }
 
+/// Standard deviation of the pre-flight accelerometer bias calibration, g
+/// (per axis; the simulator draws biases within +-0.1 g).
+const IMU_CALIBRATION_ACCEL_STD_G: f64 = 0.01;
+/// Standard deviation of the pre-flight gyro bias calibration, deg/s (per
+/// axis; the simulator draws biases within +-0.57 deg/s).
+const IMU_CALIBRATION_GYRO_STD_DEG_S: f64 = 0.05;
+/// Key of the calibration error's random stream (the simulator's use 1-9).
+const IMU_CALIBRATION_STREAM: u64 = 100;
+
+/// A pre-flight IMU bias calibration of the run: the simulator's biases at
+/// the first IMU sample plus an error drawn per seed, normal with the
+/// standard deviations above. `(accel m/s², gyro rad/s)`.
+fn imu_calibration(s: &RunSetup) -> (Vector3<f64>, Vector3<f64>) {
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&s.config.seed.to_le_bytes());
+    key[8..16].copy_from_slice(&IMU_CALIBRATION_STREAM.to_le_bytes());
+    let mut rng = ChaCha8Rng::from_seed(key);
+    // Box-Muller: a standard normal deviate from two uniforms.
+    let mut normal = || {
+        let u: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
+        let v: f64 = rng.random_range(0.0..1.0);
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    };
+    let accel_std = IMU_CALIBRATION_ACCEL_STD_G * STANDARD_GRAVITY;
+    let gyro_std = IMU_CALIBRATION_GYRO_STD_DEG_S.to_radians();
+    let accel_error = Vector3::from_fn(|_, _| accel_std * normal());
+    let gyro_error = Vector3::from_fn(|_, _| gyro_std * normal());
+    let truth = s.events.iter().find_map(|e| match e {
+        SimEvent::Imu { truth, .. } => Some(truth),
+        _ => None,
+    });
+    truth.map_or((accel_error, gyro_error), |t| {
+        (
+            t.accel_bias_m_s2 + accel_error,
+            t.gyro_bias_rad_s + gyro_error,
+        )
+    })
+}
+
+/// `proposed` on a calibrated IMU: its EKF starts from [`imu_calibration`]
+/// with the calibration's standard deviations as the bias uncertainty.
+fn run_calibrated<T: Scalar>(s: &RunSetup) -> RunScore {
+    let mode = DelayMode::Estimated {
+        initial_s: T::lit(s.start.delay_s),
+    };
+    let mut config = nav_config::<T>(&s.config, mode, s.start.std_s);
+    let (accel, gyro) = imu_calibration(s);
+    config.ekf.initial_accel_bias_m_s2 = accel.map(T::lit);
+    config.ekf.initial_gyro_bias_rad_s = gyro.map(T::lit);
+    config.ekf.initial_accel_bias_std_m_s2 = T::lit(IMU_CALIBRATION_ACCEL_STD_G * STANDARD_GRAVITY);
+    config.ekf.initial_gyro_bias_std_rad_s = T::lit(IMU_CALIBRATION_GYRO_STD_DEG_S.to_radians());
+    let nav = DelayCompensatedNav::new(config).expect("valid navigator config");
+    score(nav, s, nav_covariance)
+}
+
 fn run_oracle<T: Scalar>(s: &RunSetup) -> RunScore {
     let mode = DelayMode::Fixed {
         delay_s: T::lit(s.config.delay.initial_s),
@@ -328,22 +387,33 @@ fn run_oracle<T: Scalar>(s: &RunSetup) -> RunScore {
 /// estimators' figures: the RMS over the scored samples of its per-time
 /// standard deviations.
 fn run_bound(s: &RunSetup) -> RunScore {
-    linearized(s, BoundMagnetometer::Field)
+    linearized(s, BoundConfig::for_sensors(&s.config.sensors))
+}
+
+/// The bound of a filter starting from the pre-flight IMU calibration
+/// (`calibrated`): the biases' prior is the calibration's uncertainty.
+fn run_bound_calibrated(s: &RunSetup) -> RunScore {
+    let config = BoundConfig {
+        accel_bias_std_m_s2: IMU_CALIBRATION_ACCEL_STD_G * STANDARD_GRAVITY,
+        gyro_bias_std_rad_s: IMU_CALIBRATION_GYRO_STD_DEG_S.to_radians(),
+        ..BoundConfig::for_sensors(&s.config.sensors)
+    };
+    linearized(s, config)
 }
 
 /// The same linearized filter taking only a heading from the magnetometer
 /// (the noise floor's model). Not a bound: the estimators' tilt-coupled
 /// heading update takes some tilt from the magnetometer too.
 fn run_bound_heading_mag(s: &RunSetup) -> RunScore {
-    linearized(s, BoundMagnetometer::Heading)
-}
-
-fn linearized(s: &RunSetup, magnetometer: BoundMagnetometer) -> RunScore {
-    let started = Instant::now();
     let config = BoundConfig {
-        magnetometer,
+        magnetometer: BoundMagnetometer::Heading,
         ..BoundConfig::for_sensors(&s.config.sensors)
     };
+    linearized(s, config)
+}
+
+fn linearized(s: &RunSetup, config: BoundConfig) -> RunScore {
+    let started = Instant::now();
     let bound = trajectory_bound(&s.events, &s.config, &config).expect("valid bound config");
     let busy = started.elapsed();
     let rms = bound.rms_after(s.skip_us);
@@ -378,9 +448,11 @@ fn estimators() -> Vec<Estimator> {
     vec![
         row("bound", run_bound),
         row("bound_heading_mag", run_bound_heading_mag),
+        row("bound_calibrated", run_bound_calibrated),
         row("ekf16", run_ekf16::<f64>),
         row("aekf17", run_aekf17::<f64>),
         row("proposed", run_proposed::<f64>),
+        row("calibrated", run_calibrated::<f64>),
         row("oracle", run_oracle::<f64>),
         row("ekf16_f32", run_ekf16::<f32>),
         row("aekf17_f32", run_aekf17::<f32>),
@@ -399,6 +471,15 @@ fn nav<T: Scalar>(
     mode: DelayMode<T>,
     initial_std_s: Option<f64>,
 ) -> DelayCompensatedNav<T> {
+    DelayCompensatedNav::new(nav_config(sim, mode, initial_std_s)).expect("valid navigator config")
+}
+
+/// The configuration of [`nav`].
+fn nav_config<T: Scalar>(
+    sim: &SimConfig,
+    mode: DelayMode<T>,
+    initial_std_s: Option<f64>,
+) -> NavConfig<T> {
     let mut config = NavConfig {
         ekf: ekf16_config::<T>(sim),
         mode,
@@ -411,7 +492,7 @@ fn nav<T: Scalar>(
     if let Some(&rate) = FILTER_RATE_HZ.get() {
         config.filter_rate_hz = T::lit(rate);
     }
-    DelayCompensatedNav::new(config).expect("valid navigator config")
+    config
 }
 
 /// The 16-state EKF configured with the simulator's own noise (Table 3 read
@@ -877,7 +958,7 @@ impl ScenarioResult {
 }
 
 /// The paired comparisons printed and written: `proposed` against each.
-const PAIRED_AGAINST: [&str; 3] = ["oracle", "aekf17", "ekf16"];
+const PAIRED_AGAINST: [&str; 4] = ["oracle", "aekf17", "ekf16", "calibrated"];
 
 /// Figures of the paired comparison: the errors of [`FIGURES`] (roll to position).
 const PAIRED_FIGURES: &[Figure] = FIGURES.split_at(7).0;
@@ -975,7 +1056,7 @@ fn print_tables(results: &[ScenarioResult], seeds: usize, duration_s: f64, skip_
         );
         let start = match r.calibration_rms_error_s() {
             Some(rms) => format!(
-                "`proposed` and `aekf17` start from an offline calibration on a separate \
+                "`proposed`, `calibrated` and `aekf17` start from an offline delay calibration on a separate \
                  {CALIBRATION_DURATION_S} s run (seed + {CALIBRATION_SEED_OFFSET}): {} s per seed, \
                  RMS error {:.2} ms",
                 r.calibrated_delays_s
