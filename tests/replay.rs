@@ -290,6 +290,93 @@ fn ardupilot_added_gps_delay_shifts_fixes_only() {
 }
 
 #[test]
+fn ardupilot_gps_delay_added_from_a_time_shifts_later_fixes_only() {
+    let Some(dir) = log171() else { return };
+    let (plain, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let options = ReaderOptions::default()
+        .with_added_gps_delay(0.2, Some(150.0))
+        .unwrap();
+    assert_eq!(options.gps_delay_added_us, 200_000);
+    assert_eq!(options.gps_delay_added_from_us, 150_000_000);
+    let (stepped, _) = read_all::<f64>(&dir, &options);
+    assert_eq!(plain.len(), stepped.len());
+    assert_time_ordered(&stepped);
+    let fixes = |events: &[SensorEvent<f64>]| -> Vec<u64> {
+        events
+            .iter()
+            .filter(|e| e.kind() == StreamKind::Gps)
+            .map(|e| e.time_us())
+            .collect()
+    };
+    let (before, after) = (fixes(&plain), fixes(&stepped));
+    assert_eq!(before.len(), after.len());
+    let mut shifted = 0;
+    for (a, b) in before.iter().zip(&after) {
+        let expected = if *a >= 150_000_000 { a + 200_000 } else { *a };
+        assert_eq!(*b, expected);
+        shifted += usize::from(*a >= 150_000_000);
+    }
+    assert!(
+        shifted > 100 && shifted < before.len(),
+        "{shifted} fixes shifted"
+    );
+}
+
+#[test]
+fn added_gps_delay_options_are_checked() {
+    let base = ReaderOptions::default();
+    for (delay, from) in [
+        (-0.1, None),
+        (f64::NAN, None),
+        (f64::INFINITY, None),
+        (0.2, Some(-1.0)),
+        (0.2, Some(f64::NAN)),
+        (0.2, Some(f64::NEG_INFINITY)),
+    ] {
+        let err = base.with_added_gps_delay(delay, from).unwrap_err();
+        assert!(
+            matches!(err, ReplayError::InvalidSeconds { .. }),
+            "{delay} from {from:?}: {err}"
+        );
+    }
+    let err = base.with_added_gps_delay(0.2, Some(-1.0)).unwrap_err();
+    assert!(
+        err.to_string().contains("start of the added GPS delay"),
+        "{err}"
+    );
+    // Huge values saturate instead of overflowing, and so does the shift.
+    let huge = base.with_added_gps_delay(1e300, Some(1e300)).unwrap();
+    assert_eq!(huge.gps_delay_added_us, u64::MAX);
+    assert_eq!(huge.gps_delay_added_from_us, u64::MAX);
+    let from_start = base.with_added_gps_delay(0.25, None).unwrap();
+    assert_eq!(
+        (
+            from_start.gps_delay_added_us,
+            from_start.gps_delay_added_from_us
+        ),
+        (250_000, 0)
+    );
+    let dir = temp_dir("huge-delay");
+    write(
+        &dir,
+        "imu.csv",
+        "t_us,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2\n\
+         0,0,0,0,0,0,-9.8\n",
+    );
+    write(
+        &dir,
+        "gps.csv",
+        "t_us,lat_deg,lon_deg,alt_m,vel_n_m_s,vel_e_m_s,vel_d_m_s\n10,1,2,3,0,0,0\n",
+    );
+    let shifted = base.with_added_gps_delay(1e300, None).unwrap();
+    let events: Vec<SensorEvent<f64>> = LogReader::open_paths(&[&dir], None, &shifted)
+        .unwrap()
+        .collect();
+    assert_eq!(events.len(), 2);
+    assert_eq!(events[1].time_us(), u64::MAX);
+}
+
+#[test]
 fn ardupilot_reference_and_trim() {
     let Some(dir) = log171() else { return };
     let files = LogFiles::locate(&[&dir], None, &ReaderOptions::default()).unwrap();
@@ -964,25 +1051,8 @@ fn run_every_estimator(
     options: &delaynav::replay::RunOptions,
 ) -> Vec<(&'static str, delaynav::replay::RunSummary)> {
     let files = LogFiles::locate(&[dir], None, reader).unwrap();
-    let at_rest = LogReader::<f64>::open(&files, reader).unwrap();
-    let inclination = delaynav::replay::inclination_at_rest(at_rest, 10_000_000).unwrap();
-    let declination = options.estimator_declination_rad;
-    // The hand-tuned IMU noise for log171 (docs/TUNING.md): its in-flight
-    // noise, the accelerometer's raised by half (the paper's Table 3 noise
-    // made the filters overconfident here: fixes gated, velocity diverging).
-    let ekf16 = delaynav::Ekf16Config {
-        mag_inclination_rad: inclination,
-        mag_declination_rad: declination,
-        accel_noise_density: 0.05,
-        gyro_noise_density: 0.005,
-        ..delaynav::Ekf16Config::default()
-    };
-    let proposed = delaynav::NavConfig {
-        ekf: ekf16,
-        imu_rate_hz: 50.0, // log171's IMU rate
-        ..delaynav::NavConfig::default()
-    };
-    let proposed = delaynav::DelayCompensatedNav::<f64>::new(proposed).unwrap();
+    let ekf16 = log171_filter_config(&files, reader, options);
+    let proposed = log171_proposed(ekf16);
     let aekf17 = delaynav::AugmentedEkf17::new(delaynav::Aekf17Config::with_nav(ekf16)).unwrap();
     let ekf16 = delaynav::Ekf16::new(ekf16).unwrap();
     vec![
@@ -990,6 +1060,36 @@ fn run_every_estimator(
         ("aekf17", run_on(aekf17, &files, reader, options)),
         ("ekf16", run_on(ekf16, &files, reader, options)),
     ]
+}
+
+/// The filters' configuration for log171: its declination, its measured
+/// inclination, and the hand-tuned IMU noise (docs/TUNING.md): its in-flight
+/// noise, the accelerometer's raised by half (the paper's Table 3 noise made
+/// the filters overconfident here: fixes gated, velocity diverging).
+fn log171_filter_config(
+    files: &LogFiles,
+    reader: &ReaderOptions,
+    options: &delaynav::replay::RunOptions,
+) -> delaynav::Ekf16Config<f64> {
+    let at_rest = LogReader::<f64>::open(files, reader).unwrap();
+    let inclination = delaynav::replay::inclination_at_rest(at_rest, 10_000_000).unwrap();
+    delaynav::Ekf16Config {
+        mag_inclination_rad: inclination,
+        mag_declination_rad: options.estimator_declination_rad,
+        accel_noise_density: 0.05,
+        gyro_noise_density: 0.005,
+        ..delaynav::Ekf16Config::default()
+    }
+}
+
+/// The delay-compensated navigator for log171 (its IMU runs at 50 Hz).
+fn log171_proposed(ekf: delaynav::Ekf16Config<f64>) -> delaynav::DelayCompensatedNav<f64> {
+    let config = delaynav::NavConfig {
+        ekf,
+        imu_rate_hz: 50.0,
+        ..delaynav::NavConfig::default()
+    };
+    delaynav::DelayCompensatedNav::<f64>::new(config).unwrap()
 }
 
 fn flight_window() -> delaynav::replay::RunOptions {
@@ -1135,6 +1235,99 @@ fn proposed_meets_the_flight_log_targets() {
             "added {added_s} s, the estimate moved {moved} s"
         );
     }
+}
+
+/// The proposed navigator through log171's flight window (replayed from
+/// 45 s, scored from 75 s, as the replay example runs it), without and with
+/// 0.2 s added to the fixes received from 150 s on: (final delay without,
+/// the step's summary against it). `adapt`: the delay loop adapted to the
+/// log's measured GPS rate, as the replay example configures it; else the
+/// library's default delay loop.
+fn proposed_through_a_delay_step(
+    dir: &Path,
+    adapt: bool,
+) -> (f64, delaynav::replay::DelayStepSummary) {
+    let run = |reader: &ReaderOptions, options: &delaynav::replay::RunOptions| {
+        let files = LogFiles::locate(&[dir], None, reader).unwrap();
+        let mut config = delaynav::NavConfig {
+            ekf: log171_filter_config(&files, reader, options),
+            imu_rate_hz: 50.0,
+            ..delaynav::NavConfig::default()
+        };
+        if adapt {
+            let events = LogReader::<f64>::open(&files, &ReaderOptions::default()).unwrap();
+            let rate = delaynav::replay::LogDefaults::measure(events, None)
+                .gps_rate_hz
+                .unwrap();
+            config.delay_loop = config.delay_loop.adapted_to_gps_rate(rate).unwrap();
+        }
+        let proposed = delaynav::DelayCompensatedNav::<f64>::new(config).unwrap();
+        run_on(proposed, &files, reader, options)
+    };
+    let window = delaynav::replay::RunOptions {
+        start_us: Some(45_000_000),
+        score_from_us: Some(75_000_000),
+        ..flight_window()
+    };
+    let plain = run(&ReaderOptions::default(), &window);
+    let without = plain.final_delay_s.unwrap();
+    let reader = ReaderOptions::default()
+        .with_added_gps_delay(0.2, Some(150.0))
+        .unwrap();
+    let step = delaynav::replay::DelayStep {
+        reference_s: Some(without),
+        ..delaynav::replay::DelayStep::new(reader.gps_delay_added_from_us, 0.2)
+    };
+    let options = delaynav::replay::RunOptions {
+        delay_step: Some(step),
+        ..window
+    };
+    let stepped = run(&reader, &options);
+    // From 45 s the warm-up holds the log's 2 s IMU gap (docs/replay.md):
+    // the samples around it are refused, as without the step.
+    assert_eq!(stepped.refused, plain.refused);
+    assert_eq!(stepped.non_finite_estimates, 0);
+    let summary = stepped.delay_step.expect("the navigator estimates a delay");
+    println!("without {without} s, {summary:?}");
+    assert_eq!(summary.final_s, stepped.final_delay_s);
+    assert_eq!(summary.target_s, Some(without + 0.2));
+    (without, summary)
+}
+
+/// Issue 11 on the real log: 0.2 s added to the fixes from 150 s on (the
+/// motion ends at about 200 s). The estimate must end within 10 ms of its
+/// value without the added delay plus 0.2 s and stay there for good before
+/// the motion ends (measured: 0.4900 s against 0.4963 s, settled 31.3 s
+/// after the step).
+#[test]
+fn proposed_follows_a_delay_step_on_the_flight_log() {
+    let Some(dir) = log171() else { return };
+    let (without, step) = proposed_through_a_delay_step(&dir, false);
+    let end = step.final_s.unwrap();
+    assert!(
+        (end - (without + 0.2)).abs() <= 0.010,
+        "ended at {end} s, without the added delay {without} s"
+    );
+    let settled = step.settled_after_s.expect("the estimate never settled");
+    assert!(settled < 50.0, "settled after {settled} s");
+}
+
+/// The same with the delay loop adapted to the log's GPS rate, as the replay
+/// example runs it. Not met: log171's fixes come every 0.201 s (4.98 Hz),
+/// just below the 5 Hz where `DelayLoopConfig::adapted_to_gps_rate` switches
+/// to the fix-interval correlation, and the estimate then ends 15 ms short
+/// (0.481 s against 0.496 s; docs/RESULTS.md, "A delay step on the flight
+/// log"). `cargo test --features replay --test replay -- --ignored`.
+#[test]
+#[ignore = "issue 11's acceptance with the log's GPS rate adaptation: 15 ms off"]
+fn proposed_follows_a_delay_step_with_the_rate_adapted_loop() {
+    let Some(dir) = log171() else { return };
+    let (without, step) = proposed_through_a_delay_step(&dir, true);
+    let end = step.final_s.unwrap();
+    assert!(
+        (end - (without + 0.2)).abs() <= 0.010,
+        "ended at {end} s, without the added delay {without} s"
+    );
 }
 
 // ---------------------------------------------------------------------------

@@ -20,10 +20,10 @@ use clap::Parser;
 use delaynav::ekf16::GpsReset;
 use delaynav::nav::health::Health;
 use delaynav::replay::{
-    ArduPilotImu, EstimateWriter, FusionRecords, ImuNoise, LogDefaults, LogFiles, LogFormat,
-    LogReader, MagneticModel, NoiseSource, ReaderOptions, ReferenceAlignment, ReferenceReader,
-    RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot, dataflash::DataFlashLog,
-    flight_window, inclination_at_rest, log_date, magnetic_model, replay,
+    ArduPilotImu, DelayStep, EstimateWriter, FusionRecords, ImuNoise, LogDefaults, LogFiles,
+    LogFormat, LogReader, MagneticModel, NoiseSource, ReaderOptions, ReferenceAlignment,
+    ReferenceReader, RunOptions, RunSummary, SkipCounts, SkipKind, ardupilot,
+    dataflash::DataFlashLog, flight_window, inclination_at_rest, log_date, magnetic_model, replay,
 };
 use delaynav::{
     Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
@@ -55,6 +55,14 @@ struct Args {
     /// Seconds added to every GPS receive time (the added-delay experiment).
     #[arg(long, default_value_t = 0.0)]
     add_gps_delay: f64,
+    /// Add the delay only to the fixes received from this time on, seconds
+    /// on the log's clock (default: from the start). Each estimator is then
+    /// also replayed without the added delay, and the JSON reports how its
+    /// delay estimate followed the step (`delay_step`): the time until it
+    /// stays within 10 ms of its final value without the added delay plus
+    /// the added delay.
+    #[arg(long)]
+    add_delay_from: Option<f64>,
     /// Start of the scored window, seconds on the log's clock (default: the
     /// take-off found in the log).
     #[arg(long)]
@@ -466,14 +474,14 @@ fn seconds_to_us(s: f64) -> u64 {
 fn setup(args: &Args) -> Result<Setup, Failure> {
     let imu_instance = if args.imu2 { 1 } else { args.imu_instance };
     let reader = ReaderOptions {
-        gps_delay_added_us: seconds_to_us(args.add_gps_delay),
         ardupilot_imu: match imu_instance {
             0 => ArduPilotImu::First,
             _ => ArduPilotImu::Second,
         },
         imu_instance,
         ..ReaderOptions::default()
-    };
+    }
+    .with_added_gps_delay(args.add_gps_delay, args.add_delay_from)?;
     let files = LogFiles::locate(
         &args.inputs,
         LogFormat::parse_choice(&args.format)?,
@@ -678,6 +686,9 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         end_us: to_s.map(seconds_to_us),
         alignment,
         estimator_declination_rad: alignment.declination_rad,
+        delay_step: args
+            .add_delay_from
+            .map(|_| DelayStep::new(reader.gps_delay_added_from_us, args.add_gps_delay)),
         ..RunOptions::default()
     };
     Setup {
@@ -817,6 +828,15 @@ fn summary_json(name: &str, s: &RunSummary, skips: &SkipCounts) -> Value {
     json!({
         "estimator": name,
         "final_delay_s": s.final_delay_s,
+        "delay_step": s.delay_step.map(|d| json!({
+            "from_s": d.from_s,
+            "added_s": d.added_s,
+            "before_s": d.before_s,
+            "final_s": d.final_s,
+            "reference_s": d.reference_s,
+            "target_s": d.target_s,
+            "settled_after_s": d.settled_after_s,
+        })),
         "delay_track": s.delay_track,
         "roll_rms_deg": rms.map(|r| r.roll_deg),
         "pitch_rms_deg": rms.map(|r| r.pitch_deg),
@@ -889,7 +909,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
         simulated_log(&mut args)?;
     }
     let estimators = chosen(&args.estimator)?;
-    let setup = setup(&args)?;
+    let mut setup = setup(&args)?;
     if args.print_config {
         print!("{}", config_file::to_toml(&setup.nav)?);
         return Ok(());
@@ -936,7 +956,25 @@ fn run(mut args: Args) -> Result<(), Failure> {
         "{:<9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>8} {:>8}",
         "estimator", "delay_s", "roll_deg", "pitch_deg", "yaw_deg", "vel_m_s", "refused", "nonfin"
     );
+    let step = setup.run.delay_step;
     for r in estimators {
+        if let Some(step) = step {
+            // The reference of the step: the same replay without the added delay.
+            let (reader, run) = (setup.reader, setup.run);
+            setup.reader.gps_delay_added_us = 0;
+            setup.run.delay_step = None;
+            let mut none = Outputs {
+                estimates: None,
+                attitude: Vec::new(),
+                keep_attitude: false,
+            };
+            let without = (r.run)(&setup, &mut none);
+            (setup.reader, setup.run) = (reader, run);
+            setup.run.delay_step = Some(DelayStep {
+                reference_s: without?.0.final_delay_s,
+                ..step
+            });
+        }
         let (s, health) = (r.run)(&setup, &mut outputs)?;
         let rms = s.reference_rms;
         println!(
@@ -951,6 +989,21 @@ fn run(mut args: Args) -> Result<(), Failure> {
             s.non_finite_estimates,
         );
         summaries.push((r, s, health));
+    }
+    for (r, s, _) in &summaries {
+        if let Some(d) = s.delay_step {
+            println!(
+                "{}: delay step +{:.3} s at {:.1} s: before {} s, final {} s, without the added delay {} s, within 10 ms of the target {} s after {} s",
+                r.name,
+                d.added_s,
+                d.from_s,
+                fmt_opt(d.before_s, 4),
+                fmt_opt(d.final_s, 4),
+                fmt_opt(d.reference_s, 4),
+                fmt_opt(d.target_s, 4),
+                fmt_opt(d.settled_after_s, 1),
+            );
+        }
     }
     println!();
     println!("health at the end of the replay (docs/replay.md, \"Health summary\"):");
@@ -968,6 +1021,7 @@ fn run(mut args: Args) -> Result<(), Failure> {
             "imu_instance": setup.reader.imu_instance,
             "counts": { "imu": counts.imu, "gps": counts.gps, "mag": counts.mag },
             "gps_delay_added_s": args.add_gps_delay,
+            "gps_delay_added_from_s": args.add_delay_from,
             "replayed_from_s": setup.run.start_us.map(|t| t as f64 * 1e-6),
             "scored_from_s": setup.run.score_from_us.map(|t| t as f64 * 1e-6),
             "to_s": setup.run.end_us.map(|t| t as f64 * 1e-6),

@@ -53,7 +53,10 @@ pub mod window;
 
 pub use defaults::{ImuNoise, LogDefaults, MagneticModel, NoiseSource, log_date, magnetic_model};
 pub use estimates_csv::EstimateWriter;
-pub use run::{FusionRecords, ReferenceRms, RunOptions, RunSummary, inclination_at_rest, replay};
+pub use run::{
+    DelayStep, DelayStepSummary, FusionRecords, ReferenceRms, RunOptions, RunSummary,
+    inclination_at_rest, replay,
+};
 pub use window::{FlightWindow, flight_window};
 
 use crate::error::Error;
@@ -369,6 +372,28 @@ pub enum ReplayError {
         /// What was looked for.
         what: String,
     },
+    /// A duration option (seconds) is negative, NaN or infinite.
+    #[error("{name} must be a finite, non-negative number of seconds, not {value}")]
+    InvalidSeconds {
+        /// The option, e.g. `"added GPS delay"`.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+}
+
+/// Seconds to whole microseconds, rounded; values beyond `u64::MAX` µs
+/// (584,000 years) saturate there. A negative, NaN or infinite value is
+/// [`ReplayError::InvalidSeconds`] naming the option.
+pub fn seconds_to_us(name: &'static str, seconds: f64) -> Result<u64, ReplayError> {
+    if !seconds.is_finite() || seconds < 0.0 {
+        return Err(ReplayError::InvalidSeconds {
+            name,
+            value: seconds,
+        });
+    }
+    // `as` saturates for finite values above u64::MAX.
+    Ok((seconds * 1e6).round() as u64)
 }
 
 /// The log layouts the readers understand.
@@ -476,6 +501,11 @@ pub struct ReaderOptions {
     /// Added to every GPS receive time, microseconds: the added-delay
     /// experiment (the paper's Table 7). The merge keeps the stream ordered.
     pub gps_delay_added_us: u64,
+    /// The delay is added to the fixes received at or after this time
+    /// (on the log's clock, before the shift), microseconds; 0: every fix.
+    /// A later start makes a step of the delay in the middle of a log: the
+    /// fixes after it arrive `gps_delay_added_us` later, still in order.
+    pub gps_delay_added_from_us: u64,
     /// ArduPilot CSV: which IMU file.
     pub ardupilot_imu: ArduPilotImu,
     /// Binary logs: which IMU (DataFlash `IMU` instance, ULog
@@ -483,6 +513,27 @@ pub struct ReaderOptions {
     pub imu_instance: u8,
     /// ArduPilot: which reference file.
     pub ardupilot_reference: ArduPilotReference,
+}
+
+impl ReaderOptions {
+    /// These options with `delay_s` seconds added to the receive time of
+    /// every fix received at or after `from_s` seconds (`None`: from the
+    /// start). A negative, NaN or infinite value is
+    /// [`ReplayError::InvalidSeconds`]; huge values saturate.
+    pub fn with_added_gps_delay(
+        self,
+        delay_s: f64,
+        from_s: Option<f64>,
+    ) -> Result<Self, ReplayError> {
+        Ok(Self {
+            gps_delay_added_us: seconds_to_us("added GPS delay", delay_s)?,
+            gps_delay_added_from_us: match from_s {
+                Some(from) => seconds_to_us("start of the added GPS delay", from)?,
+                None => 0,
+            },
+            ..self
+        })
+    }
 }
 
 /// The files of one log, found from directories and/or file paths.
@@ -643,12 +694,15 @@ struct MergeInput<T: Scalar> {
     stream: RowStream<SensorEvent<T>>,
     head: Option<SensorEvent<T>>,
     shift_us: u64,
+    shift_from_us: u64,
 }
 
 impl<T: Scalar> MergeInput<T> {
     fn advance(&mut self, skips: &mut SkipCounts) {
         self.head = self.stream.next_value(skips).map(|mut e| {
-            if let SensorEvent::Gps(g) = &mut e {
+            if let SensorEvent::Gps(g) = &mut e
+                && g.t_us >= self.shift_from_us
+            {
                 // Saturates instead of overflowing: a receive time within
                 // the added delay of u64::MAX µs (584,000 years) is kept
                 // at u64::MAX, still after every earlier sample.
@@ -682,6 +736,7 @@ impl<T: Scalar> LogReader<T> {
             stream,
             head: None,
             shift_us,
+            shift_from_us: options.gps_delay_added_from_us,
         };
         let mut inputs = vec![
             input(streams.imu, 0),

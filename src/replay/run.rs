@@ -42,6 +42,114 @@ pub struct RunOptions {
     pub estimator_declination_rad: f64,
     /// Interval of the delay track, microseconds.
     pub delay_track_interval_us: u64,
+    /// A step of the GPS delay made by the reader
+    /// ([`ReaderOptions::gps_delay_added_from_us`](super::ReaderOptions)):
+    /// the summary then reports how the delay estimate followed it
+    /// ([`RunSummary::delay_step`]).
+    pub delay_step: Option<DelayStep>,
+}
+
+/// A step of the GPS delay in the middle of a replay.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DelayStep {
+    /// Receive time from which on the delay is added, microseconds.
+    pub from_us: u64,
+    /// The delay added, seconds.
+    pub added_s: f64,
+    /// The delay the estimator gives without the added delay, seconds
+    /// (e.g. the final estimate of a replay without it): the target is then
+    /// `reference + added`. `None`: the last estimate before the step.
+    pub reference_s: Option<f64>,
+    /// The estimate has settled once it stays within this of the target,
+    /// seconds ([`DELAY_SETTLED_TOLERANCE_S`] by default).
+    pub tolerance_s: f64,
+}
+
+/// How close (seconds) a delay estimate must stay to its target after a step
+/// ([`DelayStepSummary::target_s`]) to count as settled: 10 ms, the accuracy asked of the delay
+/// estimate on a real log (issue 11).
+pub const DELAY_SETTLED_TOLERANCE_S: f64 = 0.010;
+
+impl DelayStep {
+    /// A step of `added_s` seconds at `from_us`, measured against the last
+    /// estimate before it, with the default tolerance.
+    pub fn new(from_us: u64, added_s: f64) -> Self {
+        Self {
+            from_us,
+            added_s,
+            reference_s: None,
+            tolerance_s: DELAY_SETTLED_TOLERANCE_S,
+        }
+    }
+}
+
+/// How the delay estimate followed a [`DelayStep`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DelayStepSummary {
+    /// Time of the step, seconds.
+    pub from_s: f64,
+    /// The delay added, seconds.
+    pub added_s: f64,
+    /// The last estimate before the step, seconds (`None`: the estimator
+    /// gave none before it, e.g. the replay started after the step).
+    pub before_s: Option<f64>,
+    /// The last estimate of the replay, seconds.
+    pub final_s: Option<f64>,
+    /// [`DelayStep::reference_s`]: the estimate without the added delay.
+    pub reference_s: Option<f64>,
+    /// What the estimate should come to: [`DelayStep::reference_s`], else
+    /// `before_s`, plus `added_s` (`None` without either).
+    pub target_s: Option<f64>,
+    /// Seconds from the step until the estimate came within the tolerance of
+    /// `target_s` and stayed there to the end (`None`: it did not, or the
+    /// target is unknown).
+    pub settled_after_s: Option<f64>,
+}
+
+/// Follows the delay estimate through a [`DelayStep`].
+struct StepWatch {
+    step: DelayStep,
+    before_s: Option<f64>,
+    final_s: Option<f64>,
+    /// Start of the current run of estimates within the tolerance.
+    within_since_us: Option<u64>,
+}
+
+impl StepWatch {
+    fn observe(&mut self, t_us: u64, delay_s: f64) {
+        self.final_s = Some(delay_s);
+        if t_us < self.step.from_us {
+            self.before_s = Some(delay_s);
+            return;
+        }
+        let Some(target) = self.target_s() else {
+            return;
+        };
+        let within = (delay_s - target).abs() <= self.step.tolerance_s;
+        match (within, self.within_since_us) {
+            (true, None) => self.within_since_us = Some(t_us),
+            (false, _) => self.within_since_us = None,
+            (true, Some(_)) => {}
+        }
+    }
+
+    fn target_s(&self) -> Option<f64> {
+        Some(self.step.reference_s.or(self.before_s)? + self.step.added_s)
+    }
+
+    fn summary(&self) -> DelayStepSummary {
+        DelayStepSummary {
+            from_s: self.step.from_us as f64 * 1e-6,
+            added_s: self.step.added_s,
+            before_s: self.before_s,
+            final_s: self.final_s,
+            reference_s: self.step.reference_s,
+            target_s: self.target_s(),
+            settled_after_s: self
+                .within_since_us
+                .map(|t| t.saturating_sub(self.step.from_us) as f64 * 1e-6),
+        }
+    }
 }
 
 impl Default for RunOptions {
@@ -53,6 +161,7 @@ impl Default for RunOptions {
             alignment: ReferenceAlignment::default(),
             estimator_declination_rad: 0.0,
             delay_track_interval_us: 1_000_000,
+            delay_step: None,
         }
     }
 }
@@ -104,6 +213,9 @@ pub struct RunSummary {
     pub delay_track: Vec<(f64, f64)>,
     /// The last delay estimate, seconds.
     pub final_delay_s: Option<f64>,
+    /// How the delay estimate followed [`RunOptions::delay_step`], for
+    /// estimators with a delay estimate.
+    pub delay_step: Option<DelayStepSummary>,
     /// The last estimate.
     pub last_estimate_t_us: Option<u64>,
     /// Differences from the reference, when the log has one.
@@ -320,6 +432,12 @@ where
     // Records already there before the window (none for a new estimator).
     records.counts = RunSummary::default();
     let mut next_track_us = 0;
+    let mut step = options.delay_step.map(|step| StepWatch {
+        step,
+        before_s: None,
+        final_s: None,
+        within_since_us: None,
+    });
     let start = options.start_us.unwrap_or(0);
     let end = options.end_us.unwrap_or(u64::MAX);
     let score_from = options.score_from_us.unwrap_or(start).max(start);
@@ -351,6 +469,9 @@ where
         summary.last_estimate_t_us = Some(estimate.t_us);
         if let Some(d) = estimate.delay_s {
             summary.final_delay_s = Some(d.as_f64());
+            if let Some(watch) = step.as_mut() {
+                watch.observe(estimate.t_us, d.as_f64());
+            }
             if estimate.t_us >= next_track_us {
                 summary
                     .delay_track
@@ -374,6 +495,8 @@ where
         previous = Some(current);
     }
     summary.reference_rms = squares.rms();
+    // Estimators without a delay estimate report no step.
+    summary.delay_step = step.filter(|w| w.final_s.is_some()).map(|w| w.summary());
     if records.seen {
         let c = records.counts;
         summary.gps_position_fused = c.gps_position_fused;
