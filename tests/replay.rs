@@ -1313,13 +1313,9 @@ fn proposed_follows_a_delay_step_on_the_flight_log() {
 }
 
 /// The same with the delay loop adapted to the log's GPS rate, as the replay
-/// example runs it. Not met: log171's fixes come every 0.201 s (4.98 Hz),
-/// just below the 5 Hz where `DelayLoopConfig::adapted_to_gps_rate` switches
-/// to the fix-interval correlation, and the estimate then ends 15 ms short
-/// (0.481 s against 0.496 s; docs/RESULTS.md, "A delay step on the flight
-/// log"). `cargo test --features replay --test replay -- --ignored`.
+/// example runs it (4.98 Hz: the grid path, `delay::MATCHED_BELOW_HZ`; with
+/// the fix-interval correlation it ended 15 ms short).
 #[test]
-#[ignore = "issue 11's acceptance with the log's GPS rate adaptation: 15 ms off"]
 fn proposed_follows_a_delay_step_with_the_rate_adapted_loop() {
     let Some(dir) = log171() else { return };
     let (without, step) = proposed_through_a_delay_step(&dir, true);

@@ -1,4 +1,5 @@
-//! Correlation over the GPS fix intervals themselves, for slow GPS (1-5 Hz).
+//! Correlation over the GPS fix intervals themselves, for slow GPS (below
+//! [`MATCHED_BELOW_HZ`](super::MATCHED_BELOW_HZ)).
 //!
 //! The GPS acceleration of eq. (14), `a_gps,k = (v_k - v_{k-n}) / (t_k - t_{k-n})`,
 //! is the mean acceleration over the interval `[t_{k-n}, t_k]` (receive
