@@ -177,8 +177,18 @@ pub fn tilt_compensated_heading<T: Scalar>(
     pitch: T,
     declination: T,
 ) -> T {
-    let (sr, cr) = roll.sin_cos();
-    let (sp, cp) = pitch.sin_cos();
+    tilt_compensated_heading_sc(field_body, roll.sin_cos(), pitch.sin_cos(), declination)
+}
+
+/// [`tilt_compensated_heading`] from the sines and cosines of roll and
+/// pitch, `(sin, cos)` each (computed once by a caller that needs them
+/// again).
+pub(crate) fn tilt_compensated_heading_sc<T: Scalar>(
+    field_body: &Vector3<T>,
+    (sr, cr): (T, T),
+    (sp, cp): (T, T),
+    declination: T,
+) -> T {
     let m = field_body;
     // Rx(phi) m
     let y1 = cr * m.y - sr * m.z;

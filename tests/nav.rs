@@ -141,6 +141,54 @@ macro_rules! nav_tests {
                 assert!(nav.last_delay_update().is_none());
             }
 
+            /// The loop's update for a fix is not done in the call that
+            /// fuses it but at one of the next `DELAY_UPDATE_MAX_WAIT` IMU
+            /// samples (bounded work per call), and none is lost.
+            #[test]
+            fn delay_update_runs_within_a_few_imu_samples_after_the_fix() {
+                let tau = 0.15;
+                let mode = DelayMode::Estimated {
+                    initial_s: T::lit(0.2),
+                };
+                let mut nav = DelayCompensatedNav::<T>::new(config(mode, 1000.0)).unwrap();
+                let updated =
+                    |nav: &DelayCompensatedNav<T>| nav.last_delay_update().map(|u| u.t_us);
+                let mut waiting: Option<(u64, u32)> = None;
+                let (mut updates, mut fixes) = (0, 0);
+                for event in fly(&lively(7), &Suite::simulator(), 30.0, |_| tau, None) {
+                    let before = updated(&nav);
+                    feed(&mut nav, &event);
+                    match &event {
+                        FlightEvent::Gps(fix) => {
+                            assert_eq!(updated(&nav), before, "updated in push_gps");
+                            assert!(waiting.is_none(), "a fix still waiting at {}", fix.t_us);
+                            waiting = Some((fix.t_us, 0));
+                            fixes += 1;
+                        }
+                        FlightEvent::Imu(..) => {
+                            let max = delaynav::nav::DELAY_UPDATE_MAX_WAIT;
+                            let now = updated(&nav);
+                            if now != before {
+                                // Every update is the waiting fix's, in time.
+                                let (t_fix, n) = waiting.expect("an update without a fix");
+                                assert_eq!(now, Some(t_fix));
+                                assert!(n < max, "after {} samples", n + 1);
+                                updates += 1;
+                                waiting = None;
+                            } else if let Some((t_fix, n)) = waiting {
+                                // After `max` samples the loop has had the fix.
+                                waiting = (n + 1 < max).then_some((t_fix, n + 1));
+                            }
+                        }
+                        FlightEvent::Mag(_) => {}
+                    }
+                }
+                assert!(
+                    fixes > 200 && updates > 20,
+                    "{fixes} fixes, {updates} updates"
+                );
+            }
+
             #[test]
             fn constant_delay_is_recovered_at_1_khz() {
                 let tau = 0.15;

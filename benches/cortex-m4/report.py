@@ -39,7 +39,6 @@ def main():
     limits = json.loads(args.limits.read_text())
 
     runs, first, outside = {}, {}, {}
-    no_fit = set()
     for name in ESTIMATORS:
         attempts = []
         for path in args.logs.glob(f"{name}-*.txt"):
@@ -58,12 +57,10 @@ def main():
             o = outside.get(name)
             if not (o and o["kind"] == "RESULT"):
                 sys.exit(f"{name} did not fit in any configuration tried: {tried}")
-            # Fits nowhere in 128 KB: its figures come from the run whose stack
-            # reaches beyond the part's SRAM, and the report says so.
-            print(f"{name} does not fit 128 KB SRAM in any configuration tried ({', '.join(tried)}): "
-                  f"figures at {float(o['max_delay_s'])} s with the stack beyond 128 KB", file=sys.stderr)
-            no_fit.add(name)
-            result = (int(round(float(o["max_delay_s"]) * 1000)), o)
+            # Fits nowhere in 128 KB: report the counts with the stack beyond it.
+            print(f"{name} did not fit in any configuration tried: {tried}; "
+                  "figures with the stack outside 128 KB")
+            result = (int(float(o["max_delay_s"]) * 1000), o)
         runs[name] = result
 
     report = {"estimators": {}, "flash_bytes": None}
@@ -75,9 +72,7 @@ def main():
         if r["placement"] != "static":
             entry["placement"] = r["placement"]
         o = outside.get(name)
-        if name in no_fit:
-            entry["fits_128_kb"] = False
-        elif o and o["kind"] == "RESULT":
+        if o and o["kind"] == "RESULT" and o is not r:
             # Did not fit at 0.5 s at all: its counts with SRAM beyond 128 KB.
             entry["outside_128_kb_at_0_5_s"] = {key: int(o[field]) for key, field in FIGURES}
         report["estimators"][name] = entry
@@ -100,10 +95,7 @@ def main():
               f"{int(r['gps_max']):>8,} {int(r['estimate_mean']):>8,} {int(r['size_of']):>8,} "
               f"{int(r['stack_peak_construct']):>9,} {int(r['stack_peak_push']):>10,}")
         o = outside.get(name)
-        if name in no_fit:
-            print(f"  {name}: fits nowhere in 128 KB SRAM (not even at 0.2 s on the stack): the row above"
-                  " is its run with the stack reaching beyond the part's SRAM")
-        elif o and o["kind"] == "RESULT":
+        if o and o["kind"] == "RESULT" and o is not r:
             print(f"{'  (outside 128 KB)':<18} {float(o['max_delay_s']):>8.2f}s {int(o['mean']):>14,} "
                   f"{int(o['max']):>8,} {int(o['imu_mean']):>7,} {int(o['mag_mean']):>7,} "
                   f"{int(o['gps_mean']):>7,} {int(o['gps_max']):>8,} {int(o['estimate_mean']):>8,} "
@@ -113,11 +105,11 @@ def main():
         if errors:
             print(f"  {name}: {errors} pushes returned an error")
         fms, f = first[name]
-        if f is not r and name not in no_fit:
+        if f is not r:
             print(f"  {name}: does not fit 128 KB SRAM at {fms / 1000} s in a static: size_of "
                   f"{int(f['size_of']):,} B leaves {int(f['stack_available']):,} B of stack and "
                   f"{f['phase']} overflowed it; figures above at {ms / 1000} s with the object "
-                  f"{'in a static' if r['placement'] == 'static' else 'on the stack (stack figures exclude it)'}")
+                  f"{ {'static': 'in a static', 'outside': 'on a stack reaching beyond 128 KB'}.get(r['placement'], 'on the stack (stack figures exclude it)')}")
     print("(mean/max per IMU sample: push_imu plus the magnetometer and GPS pushes of the same time step;"
           " imu/mag/gps: mean of each call; estimate() apart; stack in bytes, construction and the pushes,"
           " beyond the object)")

@@ -507,8 +507,10 @@ fn out_of_range_row(options: &SuiteOptions) -> Row {
                 estimator.delay_loop().status(),
                 DelayStatus::BelowRange { .. }
             );
-            if let (SimEvent::Gps { fix, .. }, true) = (event, below) {
-                return Some(fix.t_us as f64 * 1e-6);
+            // Checked after every event: the navigator runs the loop's
+            // update at an IMU sample after the fix.
+            if below {
+                return Some(event.t_us() as f64 * 1e-6);
             }
         }
         Some(f64::INFINITY)

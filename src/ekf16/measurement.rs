@@ -110,30 +110,62 @@ pub fn gps_velocity<T: Scalar>(
 
 /// The paper's `C_phi`: NED-to-body rotation by roll alone.
 pub fn c_roll<T: Scalar>(roll: T) -> Matrix3<T> {
-    let (s, c) = roll.sin_cos();
+    c_roll_sc(roll.sin_cos())
+}
+
+fn c_roll_sc<T: Scalar>((s, c): (T, T)) -> Matrix3<T> {
     let (o, z) = (T::one(), T::zero());
     Matrix3::new(o, z, z, z, c, s, z, -s, c)
 }
 
 /// The paper's `C_theta`: NED-to-body rotation by pitch alone.
 pub fn c_pitch<T: Scalar>(pitch: T) -> Matrix3<T> {
-    let (s, c) = pitch.sin_cos();
+    c_pitch_sc(pitch.sin_cos())
+}
+
+fn c_pitch_sc<T: Scalar>((s, c): (T, T)) -> Matrix3<T> {
     let (o, z) = (T::one(), T::zero());
     Matrix3::new(c, z, -s, z, o, z, s, z, c)
 }
 
 /// The paper's `C_psi` with its (3,3) entry corrected to 1.
 pub fn c_yaw<T: Scalar>(yaw: T) -> Matrix3<T> {
-    let (s, c) = yaw.sin_cos();
+    c_yaw_sc(yaw.sin_cos())
+}
+
+fn c_yaw_sc<T: Scalar>((s, c): (T, T)) -> Matrix3<T> {
     let (o, z) = (T::one(), T::zero());
     Matrix3::new(c, s, z, -s, c, z, z, z, o)
 }
 
-/// `dC_psi/dpsi`.
-fn c_yaw_derivative<T: Scalar>(yaw: T) -> Matrix3<T> {
-    let (s, c) = yaw.sin_cos();
+/// `dC_psi/dpsi` from `(sin psi, cos psi)`.
+fn c_yaw_derivative_sc<T: Scalar>((s, c): (T, T)) -> Matrix3<T> {
     let z = T::zero();
     Matrix3::new(-s, c, z, -c, -s, z, z, z, z)
+}
+
+/// Sines and cosines of the roll and pitch a magnetometer update holds
+/// fixed, `(sin, cos)` each: computed once per sample and shared by the
+/// tilt-compensated heading, the pseudo-measurement and the model (in `f32`
+/// on a Cortex-M4 each `sin_cos` is a software `f64` evaluation).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tilt<T: Scalar> {
+    pub(crate) roll: (T, T),
+    pub(crate) pitch: (T, T),
+}
+
+impl<T: Scalar> Tilt<T> {
+    pub(crate) fn new(roll: T, pitch: T) -> Self {
+        Self {
+            roll: roll.sin_cos(),
+            pitch: pitch.sin_cos(),
+        }
+    }
+
+    /// `C_phi C_theta`.
+    fn matrix(&self) -> Matrix3<T> {
+        c_roll_sc(self.roll) * c_pitch_sc(self.pitch)
+    }
 }
 
 /// Yaw (radians, `(-pi, pi]`) of a quaternion, homogeneous in `q`.
@@ -168,7 +200,16 @@ pub fn mag_pseudo_measurement<T: Scalar>(
     heading: T,
     field_ned: &Vector3<T>,
 ) -> Vector3<T> {
-    c_roll(roll) * c_pitch(pitch) * (c_yaw(heading) * field_ned)
+    pseudo_measurement(&Tilt::new(roll, pitch), heading, field_ned)
+}
+
+/// [`mag_pseudo_measurement`] for a precomputed [`Tilt`].
+pub(crate) fn pseudo_measurement<T: Scalar>(
+    tilt: &Tilt<T>,
+    heading: T,
+    field_ned: &Vector3<T>,
+) -> Vector3<T> {
+    tilt.matrix() * (c_yaw(heading) * field_ned)
 }
 
 /// The magnetometer model `h_m(x)` with roll and pitch held at `roll`,
@@ -181,22 +222,26 @@ pub fn mag_model<T: Scalar>(
     field_ned: &Vector3<T>,
 ) -> (Vector3<T>, MeasurementJacobian<T>) {
     let q = quaternion_of(x);
-    mag_model_with_heading_jacobian(&q, roll, pitch, field_ned, &heading_jacobian(&q))
+    mag_model_with_heading_jacobian(
+        &q,
+        &Tilt::new(roll, pitch),
+        field_ned,
+        &heading_jacobian(&q),
+    )
 }
 
 /// `h_m` at the heading of `q` and the Jacobian `dh_m/dpsi dpsi_dq` for the
 /// given heading Jacobian `dpsi_dq` (1x4).
 fn mag_model_with_heading_jacobian<T: Scalar>(
     q: &Quaternion<T>,
-    roll: T,
-    pitch: T,
+    tilt: &Tilt<T>,
     field_ned: &Vector3<T>,
     dpsi_dq: &RowVector4<T>,
 ) -> (Vector3<T>, MeasurementJacobian<T>) {
-    let psi = heading(q);
-    let tilt = c_roll(roll) * c_pitch(pitch);
-    let h = tilt * (c_yaw(psi) * field_ned);
-    let dh_dpsi = tilt * (c_yaw_derivative(psi) * field_ned);
+    let psi = heading(q).sin_cos();
+    let tilt = tilt.matrix();
+    let h = tilt * (c_yaw_sc(psi) * field_ned);
+    let dh_dpsi = tilt * (c_yaw_derivative_sc(psi) * field_ned);
     let mut jac = MeasurementJacobian::zeros();
     jac.fixed_view_mut::<3, 4>(0, QUAT)
         .copy_from(&(dh_dpsi * dpsi_dq));
@@ -211,8 +256,12 @@ pub fn tilt_compensated_heading_gradient<T: Scalar>(
     roll: T,
     pitch: T,
 ) -> RowVector3<T> {
-    let (sr, cr) = roll.sin_cos();
-    let (sp, cp) = pitch.sin_cos();
+    heading_gradient(field_body, &Tilt::new(roll, pitch))
+}
+
+/// [`tilt_compensated_heading_gradient`] for a precomputed [`Tilt`].
+fn heading_gradient<T: Scalar>(field_body: &Vector3<T>, tilt: &Tilt<T>) -> RowVector3<T> {
+    let ((sr, cr), (sp, cp)) = (tilt.roll, tilt.pitch);
     let m = field_body;
     let xh = cp * m.x + sp * (sr * m.y + cr * m.z);
     let yh = cr * m.y - sr * m.z;
@@ -252,11 +301,19 @@ pub fn mag_model_tilt_coupled<T: Scalar>(
     pitch: T,
     field_ned: &Vector3<T>,
 ) -> (Vector3<T>, MeasurementJacobian<T>) {
+    model_tilt_coupled(x, &Tilt::new(roll, pitch), field_ned)
+}
+
+/// [`mag_model_tilt_coupled`] for a precomputed [`Tilt`].
+pub(crate) fn model_tilt_coupled<T: Scalar>(
+    x: &StateVector<T>,
+    tilt: &Tilt<T>,
+    field_ned: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
     let q = quaternion_of(x);
     let field_body = rotation_matrix(&q).transpose() * field_ned;
-    let dpsi_dq = tilt_compensated_heading_gradient(&field_body, roll, pitch)
-        * inverse_rotation_jacobian(&q, field_ned);
-    mag_model_with_heading_jacobian(&q, roll, pitch, field_ned, &dpsi_dq)
+    let dpsi_dq = heading_gradient(&field_body, tilt) * inverse_rotation_jacobian(&q, field_ned);
+    mag_model_with_heading_jacobian(&q, tilt, field_ned, &dpsi_dq)
 }
 
 /// `dq/dpsi` (4x1) of a pure heading change at fixed roll and pitch: the

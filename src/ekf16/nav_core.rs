@@ -70,7 +70,7 @@ use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
     LocalFrame, euler_from_quaternion, magnetic_field_ned, quaternion_from_euler,
-    roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading,
+    roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading, tilt_compensated_heading_sc,
 };
 use crate::kalman;
 use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s};
@@ -1080,10 +1080,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let euler = euler_from_quaternion(&quaternion_of(&x16));
         let (roll, pitch) = (euler.x, euler.y);
         let field_ned = self.field_ned;
-        let heading_mag =
-            tilt_compensated_heading(&m.field_body, roll, pitch, c.mag_declination_rad);
-        let z = measurement::mag_pseudo_measurement(roll, pitch, heading_mag, &field_ned);
-        let (hx, h16) = measurement::mag_model_tilt_coupled(&x16, roll, pitch, &field_ned);
+        // Roll's and pitch's sines and cosines once for the three uses.
+        let tilt = measurement::Tilt::new(roll, pitch);
+        let heading_mag = tilt_compensated_heading_sc(
+            &m.field_body,
+            tilt.roll,
+            tilt.pitch,
+            c.mag_declination_rad,
+        );
+        let z = measurement::pseudo_measurement(&tilt, heading_mag, &field_ned);
+        let (hx, h16) = measurement::model_tilt_coupled(&x16, &tilt, &field_ned);
         let r = Matrix3::identity() * c.mag_noise_variance;
         // A disturbed sample goes through the gate of 0: rejected, with its record.
         let gate = if field.is_some() {

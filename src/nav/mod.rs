@@ -50,9 +50,13 @@
 //! ([`GpsOutcome::Fused`]). A fix that arrives between IMU
 //! samples describes an instant up to one IMU step past the horizon; the
 //! horizon first steps there (one more EKF step, read from the history), so
-//! the fix is fused at its own instant. Its velocity goes to the delay loop,
-//! and the fusion's correction reaches the present through the output
-//! predictor.
+//! the fix is fused at its own instant. The fusion's correction reaches the
+//! present through the output predictor. Its velocity goes to the delay
+//! loop at a later IMU sample, the first that neither steps the horizon
+//! filter nor fuses the magnetometer (at most [`DELAY_UPDATE_MAX_WAIT`]
+//! samples later): the loop's peak search and gain fusion do not add to the
+//! call that fuses the fix. The loop pairs samples by their grid index, so
+//! the wait does not change what it correlates.
 //!
 //! # Magnetometer
 //! Magnetometer samples are real time: the raw field at `t_m` matches the
@@ -162,6 +166,12 @@ pub const MOVING_TILT_STD_RAD: f64 = 0.35;
 
 /// Relative margin on the IMU rate when checking the history size.
 const RATE_MARGIN: f64 = 1.02;
+
+/// IMU samples a fix's velocity waits at most for the delay loop: its
+/// correlation update runs at the first IMU sample after the fix that
+/// neither steps the horizon filter nor fuses the magnetometer, at the
+/// latest at this many samples (a filter at the IMU rate steps at every one).
+pub const DELAY_UPDATE_MAX_WAIT: u32 = 3;
 
 /// Samples refused or dropped by the navigator itself (the horizon EKF's own
 /// counters are in [`DelayCompensatedNav::ekf_refusals`]).
@@ -352,6 +362,9 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// Whether the accepted fixes are geodetic (`Some(true)`) or NED.
     geodetic_fixes: Option<bool>,
     last_update: Option<DelayUpdate<T>>,
+    /// A fix's time and velocity waiting for the delay loop, and the IMU
+    /// samples it has waited ([`DELAY_UPDATE_MAX_WAIT`]).
+    pending_delay_fix: Option<(u64, Vector3<T>, u32)>,
     present_accel: Vector3<T>,
     refusals: NavRefusals,
     imu_samples: u64,
@@ -415,6 +428,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             mag_at_horizon: false,
             geodetic_fixes: None,
             last_update: None,
+            pending_delay_fix: None,
             present_accel: Vector3::zeros(),
             refusals: NavRefusals::default(),
             imu_samples: 0,
@@ -568,6 +582,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.gps_clock = StreamClock::default();
         self.mag_clock = StreamClock::default();
         self.last_update = None;
+        self.pending_delay_fix = None;
         self.valid_delay_updates = 0;
         self.mag_at_horizon = false;
         self.geodetic_fixes = None;
@@ -882,6 +897,24 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.forward.correct(t_h, &x_h);
     }
 
+    /// Gives the waiting fix (if any) to the delay loop: the peak search
+    /// and the gain fusion, kept out of the call that fuses the fix.
+    fn update_delay(&mut self) {
+        let Some((t_us, velocity, _)) = self.pending_delay_fix.take() else {
+            return;
+        };
+        match self.delay_loop.push_gps(t_us, velocity) {
+            Ok(Some(update)) => {
+                if update.axes.iter().any(|a| a.valid) {
+                    self.valid_delay_updates = self.valid_delay_updates.saturating_add(1);
+                }
+                self.last_update = Some(update);
+            }
+            Ok(None) => {}
+            Err(_) => bump(&mut self.refusals.delay_loop_refused),
+        }
+    }
+
     fn check_imu(&mut self, imu: &(impl ImuSample<T> + ?Sized)) -> Result<Imu<T>, Error> {
         let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
         let c = &self.config.ekf;
@@ -949,10 +982,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let stepped = self
             .horizon_target(s.t_us, dt_us)
             .is_some_and(|t_h| self.step_horizon(s.t_us, t_h, false));
+        let mut busy = stepped;
         if stepped {
             self.horizon_moved();
             self.correct_present();
         } else if self.fuse_due_mags() {
+            busy = true;
             self.correct_present();
         }
 
@@ -969,6 +1004,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 }
             }
         }
+        if let Some((_, _, waited)) = &mut self.pending_delay_fix {
+            *waited += 1;
+            if !busy || *waited >= DELAY_UPDATE_MAX_WAIT {
+                self.update_delay();
+            }
+        }
         if gap {
             return Err(Error::StepTooLong {
                 dt_us,
@@ -978,8 +1019,8 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         Ok(())
     }
 
-    /// Fuses the fix at the horizon at once and gives its velocity to the
-    /// delay loop (module docs). Refused, state unchanged: invalid values,
+    /// Fuses the fix at the horizon at once; its velocity goes to the delay
+    /// loop at a later IMU sample (module docs). Refused, state unchanged: invalid values,
     /// a velocity beyond the loop's plausible range, time not increasing.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
         let fix = checked_gps(gps).inspect_err(|e| {
@@ -1037,16 +1078,10 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         self.gps_clock = clock;
         self.geodetic_fixes = Some(geodetic);
         if self.is_estimating() {
-            match self.delay_loop.push_gps(fix.t_us, fix.velocity_ned_m_s) {
-                Ok(Some(update)) => {
-                    if update.axes.iter().any(|a| a.valid) {
-                        self.valid_delay_updates = self.valid_delay_updates.saturating_add(1);
-                    }
-                    self.last_update = Some(update);
-                }
-                Ok(None) => {}
-                Err(_) => bump(&mut self.refusals.delay_loop_refused),
-            }
+            // The loop's update waits for a lighter IMU sample (bounded
+            // work per call); a fix still waiting goes first.
+            self.update_delay();
+            self.pending_delay_fix = Some((fix.t_us, fix.velocity_ned_m_s, 0));
         }
         if outcome == GpsOutcome::Initialized {
             self.refine_alignment(fix.velocity_ned_m_s.norm());
