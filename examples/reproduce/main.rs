@@ -492,6 +492,14 @@ fn nav_config<T: Scalar>(
     if let Some(&rate) = FILTER_RATE_HZ.get() {
         config.filter_rate_hz = T::lit(rate);
     }
+    // The loop's defaults are those of 10 Hz GPS; at another simulated rate
+    // (the gps_rate sweep) it is configured for that rate, as a user would.
+    let gps_rate_hz = sim.sensors.gps_rate_hz;
+    if gps_rate_hz != 10.0
+        && let Ok(adapted) = config.delay_loop.adapted_to_gps_rate(T::lit(gps_rate_hz))
+    {
+        config.delay_loop = adapted;
+    }
     config
 }
 
