@@ -503,27 +503,10 @@ fn nav_config<T: Scalar>(
     config
 }
 
-/// The 16-state EKF configured with the simulator's own noise (Table 3 read
-/// per sample at the IMU rate), magnetic field and bias spread (the standard
-/// deviation of a uniform draw in `[-max, max]` is `max / sqrt(3)`).
+/// The 16-state EKF configured with the simulator's own noise, field and
+/// bias spread (`SensorConfig::ekf16_config`).
 fn ekf16_config<T: Scalar>(sim: &SimConfig) -> Ekf16Config<T> {
-    let s = &sim.sensors;
-    let g2 = STANDARD_GRAVITY * STANDARD_GRAVITY;
-    Ekf16Config {
-        mag_inclination_rad: T::lit(s.inclination_rad),
-        mag_declination_rad: T::lit(s.declination_rad),
-        mag_noise_variance: T::lit(s.mag_noise_var),
-        gps_horizontal_std_m: T::lit(s.gps_position_var_m2.sqrt()),
-        gps_vertical_std_m: T::lit(s.gps_position_var_m2.sqrt()),
-        gps_velocity_std_m_s: T::lit(s.gps_velocity_var_m2_s2.sqrt()),
-        initial_accel_bias_std_m_s2: T::lit((s.accel_bias_max_m_s2() / 3f64.sqrt()).max(1e-3)),
-        initial_gyro_bias_std_rad_s: T::lit((s.gyro_bias_max_rad_s / 3f64.sqrt()).max(1e-4)),
-        ..Ekf16Config::with_per_sample_imu_variances(
-            T::lit(s.gyro_noise_var_rad2_s2),
-            T::lit(s.accel_noise_var_g2 * g2),
-            T::lit(s.imu_rate_hz),
-        )
-    }
+    sim.sensors.ekf16_config()
 }
 
 /// Root mean square accumulator.

@@ -23,8 +23,9 @@
 //! - `g` in Table 3's units is standard gravity, 9.80665 m/s^2.
 
 use super::trajectory::STANDARD_GRAVITY;
+use crate::Scalar;
 use crate::ekf16::config::{
-    PAPER_IMU_RATE_HZ, TABLE3_ACCEL_VARIANCE_G2, TABLE3_GPS_POSITION_VARIANCE,
+    Ekf16Config, PAPER_IMU_RATE_HZ, TABLE3_ACCEL_VARIANCE_G2, TABLE3_GPS_POSITION_VARIANCE,
     TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE, TABLE3_MAG_VARIANCE,
 };
 use crate::sensors::Geodetic;
@@ -152,6 +153,30 @@ impl SensorConfig {
     /// Largest absolute accelerometer bias, m/s^2.
     pub fn accel_bias_max_m_s2(&self) -> f64 {
         self.accel_bias_max_g * STANDARD_GRAVITY
+    }
+
+    /// The filters' configuration matched to these sensors: their own noise
+    /// (Table 3 read per sample at the IMU rate), magnetic field and bias
+    /// spread (the standard deviation of a uniform draw in `[-max, max]` is
+    /// `max / sqrt(3)`, floored at 1 mm/s^2 and 1e-4 rad/s).
+    pub fn ekf16_config<T: Scalar>(&self) -> Ekf16Config<T> {
+        Ekf16Config {
+            mag_inclination_rad: T::lit(self.inclination_rad),
+            mag_declination_rad: T::lit(self.declination_rad),
+            mag_noise_variance: T::lit(self.mag_noise_var),
+            gps_horizontal_std_m: T::lit(self.gps_position_var_m2.sqrt()),
+            gps_vertical_std_m: T::lit(self.gps_position_var_m2.sqrt()),
+            gps_velocity_std_m_s: T::lit(self.gps_velocity_var_m2_s2.sqrt()),
+            initial_accel_bias_std_m_s2: T::lit(
+                (self.accel_bias_max_m_s2() / 3f64.sqrt()).max(1e-3),
+            ),
+            initial_gyro_bias_std_rad_s: T::lit((self.gyro_bias_max_rad_s / 3f64.sqrt()).max(1e-4)),
+            ..Ekf16Config::with_per_sample_imu_variances(
+                T::lit(self.gyro_noise_var_rad2_s2),
+                T::lit(self.accel_noise_var_g2 * STANDARD_GRAVITY * STANDARD_GRAVITY),
+                T::lit(self.imu_rate_hz),
+            )
+        }
     }
 
     /// Checks every field; the error names the first bad one.
