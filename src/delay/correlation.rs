@@ -24,15 +24,19 @@
 //! leaving it, `3 L` products each way, i.e. `Tgps / Tc` times that per fix
 //! (2 x 765 products per 10 Hz fix at 50 Hz, 25x fewer, and the same at any
 //! delay: the shift only selects which stored `x` is used). The window sums
-//! of `x` do not depend on the shift at all: one running `Sx, Sxx` per grid
-//! time, stored in a ring and read at age `s`. The peak search then costs
-//! `3 L` Pearson evaluations per fix.
+//! `Sx(s), Sxx(s)` of `x` are computed by the peak search from the stored
+//! `x`, not kept per grid time: the first shift's window is summed (`B`
+//! additions), and each next shift slides it by one sample (add the one
+//! entering, subtract the one leaving), `O(B + L)` per search. The peak
+//! search then costs `3 L` Pearson evaluations per fix.
 //!
 //! Add-and-subtract sums drift by rounding (a concern in `f32`). Each running
-//! sum has a shadow that only adds; after exactly `B` additions the shadow
-//! *is* the window sum, computed without subtraction, and replaces the
-//! running sum. The drift is thus bounded to `B` steps, at the price of one
-//! more addition per product.
+//! sum of the sliding update (`Sxy`, `Sy`, `Syy`) has a shadow that only
+//! adds; after exactly `B` additions the shadow *is* the window sum,
+//! computed without subtraction, and replaces the running sum. The drift is
+//! thus bounded to `B` steps, at the price of one more addition per product.
+//! The search's `Sx, Sxx` start from an add-only sum at every search and
+//! slide at most `L - 1` steps: their drift is bounded the same way.
 //!
 //! # Peak
 //!
@@ -143,10 +147,7 @@ pub struct SlidingCorrelator<T: Scalar, const BUF: usize, const LAGS: usize, con
     shift_min: usize,
     lags: usize,
     x: Ring<Vector3<T>, HIST>,
-    /// `(Sx, Sxx)` over the `B` samples ending at each stored `x`.
-    x_window: Ring<(Vector3<T>, Vector3<T>), HIST>,
     x_newest: Option<u64>,
-    x_sums: WindowSums<T>,
     y: Ring<Vector3<T>, BUF>,
     y_newest: Option<u64>,
     y_sums: WindowSums<T>,
@@ -198,9 +199,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             shift_min,
             lags,
             x: Ring::new(Vector3::zeros()),
-            x_window: Ring::new((Vector3::zeros(), Vector3::zeros())),
             x_newest: None,
-            x_sums: WindowSums::new(),
             y: Ring::new(Vector3::zeros()),
             y_newest: None,
             y_sums: WindowSums::new(),
@@ -216,9 +215,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// Forgets both streams.
     pub fn reset(&mut self) {
         self.x.clear();
-        self.x_window.clear();
         self.x_newest = None;
-        self.x_sums = WindowSums::new();
         self.reset_pairs();
     }
 
@@ -256,14 +253,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if self.x_newest.is_some_and(|n| j != n + 1) {
             self.reset();
         }
-        let leaving = if self.x.len() >= self.buffer_len {
-            self.x.get(self.buffer_len - 1)
-        } else {
-            None
-        };
-        self.x_sums.add(x, leaving, self.buffer_len);
         self.x.push(x);
-        self.x_window.push((self.x_sums.sum, self.x_sums.squares));
         self.x_newest = Some(j);
         self.pair_pending();
     }
@@ -344,14 +334,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.pairs = (self.pairs + 1).min(self.buffer_len);
     }
 
-    /// Normalized correlation of `axis` at window index `lag`, and the IMU
-    /// variance of that shift.
-    fn coefficient(&self, age: usize, axis: usize, lag: usize) -> (T, T) {
+    /// Normalized correlation of `axis` from the window sums `(Sx, Sxx)` of
+    /// one shift, and the IMU variance of that shift.
+    fn coefficient(&self, window: &(Vector3<T>, Vector3<T>), axis: usize, lag: usize) -> (T, T) {
         let n = T::lit(self.buffer_len as f64);
-        let (sx, sxx) = self
-            .x_window
-            .get(age + self.shift_min + lag)
-            .unwrap_or_else(|| (Vector3::zeros(), Vector3::zeros()));
+        let (sx, sxx) = window;
         // `axis < 3` (the callers) and `lag < lags <= LAGS` (`new`): neither
         // the reduction nor the fallback changes anything; they only keep
         // bounds checks that could panic out of the push API (benches/no-panic).
@@ -379,22 +366,52 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return None;
         }
         let age = (x_newest - y_newest) as usize;
+        let first = age + self.shift_min;
+        // Every window of the search must still be stored.
+        if first + self.lags + self.buffer_len > self.x.len() + 1 {
+            return None;
+        }
         let n = T::lit(self.buffer_len as f64);
+        let x = |a: usize| self.x.get(a).unwrap_or_else(Vector3::zeros);
+        // Window sums of the first shift, add-only.
+        let mut window = (Vector3::zeros(), Vector3::zeros());
+        for a in first..first + self.buffer_len {
+            let v = x(a);
+            window.0 += v;
+            window.1 += v.component_mul(&v);
+        }
+        // Per axis: the best shift so far (lag, R, variance), R of the
+        // shift before the best, R of the shift after it.
+        let mut best = [(0, -T::one() - T::one(), T::zero()); 3];
+        let mut left = [T::zero(); 3];
+        let mut right = [T::zero(); 3];
+        let mut previous = [T::zero(); 3];
+        for lag in 0..self.lags {
+            if lag > 0 {
+                // Slide by one shift: the window moves one sample older.
+                let (entering, leaving) =
+                    (x(first + lag + self.buffer_len - 1), x(first + lag - 1));
+                window.0 += entering - leaving;
+                window.1 += entering.component_mul(&entering) - leaving.component_mul(&leaving);
+            }
+            for axis in 0..3 {
+                let (r, var) = self.coefficient(&window, axis, lag);
+                if lag > 0 && best[axis].0 + 1 == lag {
+                    right[axis] = r;
+                }
+                if r > best[axis].1 {
+                    best[axis] = (lag, r, var);
+                    left[axis] = previous[axis];
+                }
+                previous[axis] = r;
+            }
+        }
         let mut out = [AxisPeak::default(); 3];
         for (axis, peak) in out.iter_mut().enumerate() {
-            let mut best = (0, -T::one() - T::one(), T::zero());
-            for lag in 0..self.lags {
-                let (r, var) = self.coefficient(age, axis, lag);
-                if r > best.1 {
-                    best = (lag, r, var);
-                }
-            }
-            let (lag, r, var) = best;
+            let (lag, r, var) = best[axis];
             let interior = lag > 0 && lag + 1 < self.lags;
             let offset = if interior {
-                let left = self.coefficient(age, axis, lag - 1).0;
-                let right = self.coefficient(age, axis, lag + 1).0;
-                parabolic_offset(left, r, right)
+                parabolic_offset(left[axis], r, right[axis])
             } else {
                 T::zero()
             };

@@ -45,13 +45,27 @@
 //!
 //! # Between entries
 //!
-//! `t_h` falls between two stored entries (IMU jitter, fractional delay).
-//! The entries are interpolated: normalized linear interpolation of the
-//! attitude, linear of the velocity, cubic Hermite of the position with the
+//! `t_h` falls between two stored entries (the stride below, IMU jitter,
+//! fractional delay). The entries are interpolated: the attitude and the
+//! velocity by a cubic Lagrange polynomial through the two bracketing
+//! entries and their outer neighbours (fewer at the ends of the ring; the
+//! quaternion normalized after), the position by a cubic Hermite with the
 //! velocities as end slopes (exact for a constant acceleration, as the
 //! propagation itself assumes over a step). The entry pair is found by a
 //! cursor that only moves forward with the horizon: amortized `O(1)`, at
 //! most `max_horizon_step_ratio + 1` moves per sample.
+//!
+//! # One entry every `stride` samples
+//!
+//! The ring keeps one entry every `stride` IMU samples (chosen by the
+//! navigator so that `N` entries span its largest delay), not one per
+//! sample: the horizon moves at the filter rate, and the interpolation
+//! above errs by `O(h^4)` in the spacing `h` (a linear one would cost
+//! `jerk h^2 / 8` of velocity: 1e-4 m/s for a 10 m/s^3 jerk over 10 ms,
+//! above what the tests of perfect inputs allow). The present is the newest point of the
+//! interpolation without being stored: a horizon after the newest entry is
+//! read between that entry and the present, and an IMU gap stores the
+//! present on both sides of the gap.
 
 use crate::delay::ring::Ring;
 use crate::ekf16::process;
@@ -68,7 +82,8 @@ struct Entry<T: Scalar> {
     position: Vector3<T>,
 }
 
-/// The output predictor (see the module docs). `N` entries of history.
+/// The output predictor (see the module docs). `N` entries of history, one
+/// every `stride` IMU samples.
 #[derive(Debug, Clone)]
 pub(crate) struct ForwardReckoner<T: Scalar, const N: usize> {
     /// Present output state (16 states; biases are the EKF's latest).
@@ -76,6 +91,10 @@ pub(crate) struct ForwardReckoner<T: Scalar, const N: usize> {
     t_us: u64,
     last_input: (Vector3<T>, Vector3<T>),
     ring: Ring<Entry<T>, N>,
+    /// IMU samples per stored entry (at least 1).
+    stride: u32,
+    /// IMU steps since the newest stored entry.
+    unstored: u32,
     /// Entries pushed since the start; absolute index of the newest is `pushed - 1`.
     pushed: u64,
     /// Absolute index of the last entry at or before the horizon.
@@ -89,6 +108,18 @@ pub(crate) struct ForwardReckoner<T: Scalar, const N: usize> {
     cursor_moves: u64,
 }
 
+/// Entries the attitude and velocity interpolation combines at most.
+const STENCIL: usize = 4;
+
+/// `t - u` in seconds, signed.
+fn seconds_between<T: Scalar>(t: u64, u: u64) -> T {
+    if t >= u {
+        us_to_s(t - u)
+    } else {
+        -us_to_s::<T>(u - t)
+    }
+}
+
 fn attitude_of<T: Scalar>(x: &StateVector<T>) -> UnitQuaternion<T> {
     UnitQuaternion::new_normalize(quaternion_of(x))
 }
@@ -100,7 +131,9 @@ fn set_attitude<T: Scalar>(x: &mut StateVector<T>, q: &UnitQuaternion<T>) {
 }
 
 impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
-    pub(crate) fn new() -> Self {
+    /// An output predictor storing one entry every `stride` IMU samples
+    /// (`0` counts as 1).
+    pub(crate) fn new(stride: u32) -> Self {
         let empty = Entry {
             t_us: 0,
             attitude: UnitQuaternion::identity(),
@@ -112,6 +145,8 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
             t_us: 0,
             last_input: (Vector3::zeros(), Vector3::zeros()),
             ring: Ring::new(empty),
+            stride: stride.max(1),
+            unstored: 0,
             pushed: 0,
             cursor: 0,
             rotation: UnitQuaternion::identity(),
@@ -127,6 +162,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
     /// Back to the state of [`new`](Self::new) without building a new ring.
     pub(crate) fn reset(&mut self) {
         self.ring.clear();
+        self.unstored = 0;
         self.pushed = 0;
         self.cursor = 0;
         self.rotation = UnitQuaternion::identity();
@@ -179,15 +215,20 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         self.store();
     }
 
-    fn store(&mut self) {
-        let entry = Entry {
+    /// The present in the corrected frame of now: what [`store`](Self::store) stores.
+    fn present_entry(&self) -> Entry<T> {
+        Entry {
             t_us: self.t_us,
             attitude: self.rotation.inverse() * attitude_of(&self.x),
             velocity: self.x.fixed_rows::<3>(VEL) - self.velocity,
             position: self.x.fixed_rows::<3>(POS) - self.position,
-        };
-        self.ring.push(entry);
+        }
+    }
+
+    fn store(&mut self) {
+        self.ring.push(self.present_entry());
         self.pushed += 1;
+        self.unstored = 0;
     }
 
     /// Propagates the present to `t_us` (> the present time) with the raw
@@ -203,19 +244,29 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         self.position += self.velocity * dt;
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
-        self.store();
+        self.unstored += 1;
+        if self.unstored >= self.stride {
+            self.store();
+        }
     }
 
     /// Moves the clock to `t_us` without propagating (after an IMU gap):
     /// the present is held and stored again at the new time.
     pub(crate) fn hold(&mut self, t_us: u64, gyro: &Vector3<T>, accel: &Vector3<T>) {
+        if self.unstored > 0 {
+            self.store();
+        }
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
         self.store();
     }
 
-    /// The stored entry of absolute index `i`, if still in the ring.
+    /// The stored entry of absolute index `i`, if still in the ring; index
+    /// `pushed` is the present (not stored).
     fn entry(&self, i: u64) -> Option<Entry<T>> {
+        if i == self.pushed {
+            return Some(self.present_entry());
+        }
         let age = self.pushed.checked_sub(i + 1)?;
         self.ring.get(usize::try_from(age).ok()?)
     }
@@ -225,9 +276,12 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
     fn at(&mut self, t_h: u64) -> Option<Entry<T>> {
         let oldest = self.pushed.saturating_sub(self.ring.len() as u64);
         self.cursor = self.cursor.max(oldest);
-        while self
-            .entry(self.cursor + 1)
-            .is_some_and(|next| next.t_us <= t_h)
+        // The cursor stays on stored entries; the present (index `pushed`)
+        // only closes the last interval.
+        while self.cursor + 1 < self.pushed
+            && self
+                .entry(self.cursor + 1)
+                .is_some_and(|next| next.t_us <= t_h)
         {
             self.cursor += 1;
             self.cursor_moves += 1;
@@ -252,18 +306,47 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         let h11 = s3 - s2;
         let position =
             a.position * h00 + a.velocity * (h10 * h) + b.position * h01 + b.velocity * (h11 * h);
-        let qa = a.attitude.into_inner();
-        // Same hemisphere, then normalized linear interpolation.
-        let qb = if qa.dot(&b.attitude.into_inner()) < T::zero() {
-            -b.attitude.into_inner()
+        // Attitude and velocity: Lagrange through up to four entries around
+        // `[a, b]` (the entry before `a` and the one after `b` when there),
+        // so that the spacing of `stride` samples costs `O(h^4)`, not the
+        // `O(h^2)` of a linear interpolation.
+        let first = if self.cursor > oldest {
+            self.cursor - 1
         } else {
-            b.attitude.into_inner()
+            self.cursor
         };
-        let q: Quaternion<T> = qa * (one - s) + qb * s;
+        // The present, unless just stored (then it is the newest entry).
+        let newest = self.pushed.saturating_sub(u64::from(self.unstored == 0));
+        let last = (first + STENCIL as u64 - 1).min(newest);
+        let first = last.saturating_sub(STENCIL as u64 - 1).max(oldest);
+        let mut stencil = [a; STENCIL];
+        let mut n = 0;
+        for (slot, i) in stencil.iter_mut().zip(first..=last) {
+            *slot = self.entry(i)?;
+            n += 1;
+        }
+        let stencil = stencil.get(..n)?;
+        let qa = a.attitude.into_inner();
+        let mut q = Quaternion::new(T::zero(), T::zero(), T::zero(), T::zero());
+        let mut velocity = Vector3::zeros();
+        for (i, e) in stencil.iter().enumerate() {
+            let mut w = one;
+            for (j, other) in stencil.iter().enumerate() {
+                if j != i {
+                    w *= seconds_between::<T>(t_h, other.t_us)
+                        / seconds_between::<T>(e.t_us, other.t_us);
+                }
+            }
+            let qe = e.attitude.into_inner();
+            // Same hemisphere as `a`.
+            let qe = if qa.dot(&qe) < T::zero() { -qe } else { qe };
+            q += qe * w;
+            velocity += e.velocity * w;
+        }
         Some(Entry {
             t_us: t_h,
             attitude: UnitQuaternion::new_normalize(q),
-            velocity: a.velocity * (one - s) + b.velocity * s,
+            velocity,
             position,
         })
     }

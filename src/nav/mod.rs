@@ -119,6 +119,9 @@ mod forward;
 pub mod health;
 mod timeline;
 
+#[cfg(test)]
+mod memory;
+
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
 pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 
@@ -150,6 +153,11 @@ pub const HISTORY_ORDER: usize = 3;
 
 /// Magnetometer samples waiting for the horizon.
 pub const MAG_QUEUE: usize = 128;
+
+/// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
+/// `stride` IMU samples, the stride chosen by [`DelayCompensatedNav::new`]
+/// so that the ring spans the largest delay (9 samples at 1 kHz and 0.5 s).
+pub const OUTPUT_ENTRIES: usize = 64;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
@@ -340,7 +348,7 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     interpolation_taps: u64,
     /// Timestamp of every history sample.
     times: SampleTimes<HIST>,
-    forward: ForwardReckoner<T, HIST>,
+    forward: ForwardReckoner<T, OUTPUT_ENTRIES>,
     /// Delayed samples read at the horizon since the horizon EKF's time.
     deltas: DeltaAccumulator<T>,
     /// The horizon EKF moved since the magnetometer queue was last drained.
@@ -394,6 +402,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 bound: crate::error::Bound::AtLeast(needed),
             });
         }
+        // The output ring spans `needed` samples with a stride per entry:
+        // `OUTPUT_ENTRIES - 2` intervals, one more for the newest unstored.
+        let stride = (needed / (OUTPUT_ENTRIES - 2) as f64).ceil().max(1.0) as u32;
         let rate = config.filter_rate_hz;
         let filter_period_us = if rate > T::zero() && rate < config.imu_rate_hz {
             (T::lit(1e6) / rate).round().as_f64() as u64
@@ -410,7 +421,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             history: FractionalDelayLine::new(),
             interpolation_taps: 0,
             times: SampleTimes::new(),
-            forward: ForwardReckoner::new(),
+            forward: ForwardReckoner::new(stride),
             deltas: DeltaAccumulator::new(),
             mags_due: false,
             filter_period_us,

@@ -30,51 +30,78 @@ use crate::delay::ring::Ring;
 use crate::error::Error;
 use crate::scalar::Scalar;
 
-/// The timestamps of the last `N` IMU samples (see the module docs).
+/// The timestamps of the last `N` IMU samples (see the module docs), kept
+/// as the low 32 bits of each (half the bytes of a `u64`) and the newest
+/// in full: a stored time is the newest minus the wrapping difference of
+/// the low bits, exact while the stored span is below `2^32` µs (71 min).
+/// A push that would stretch the span beyond that forgets the older times.
 #[derive(Debug, Clone)]
 pub(crate) struct SampleTimes<const N: usize> {
-    ring: Ring<u64, N>,
+    low_bits: Ring<u32, N>,
+    newest: u64,
+}
+
+/// The low 32 bits of a time (truncation intended).
+fn low_bits(t_us: u64) -> u32 {
+    (t_us & u64::from(u32::MAX)) as u32
 }
 
 impl<const N: usize> SampleTimes<N> {
     pub(crate) fn new() -> Self {
-        Self { ring: Ring::new(0) }
+        Self {
+            low_bits: Ring::new(0),
+            newest: 0,
+        }
     }
 
     pub(crate) fn push(&mut self, t_us: u64) {
-        self.ring.push(t_us);
+        if self
+            .oldest()
+            .is_some_and(|oldest| t_us.saturating_sub(oldest) > u64::from(u32::MAX))
+        {
+            self.low_bits.clear();
+        }
+        self.low_bits.push(low_bits(t_us));
+        self.newest = t_us;
     }
 
     pub(crate) fn clear(&mut self) {
-        self.ring.clear();
+        self.low_bits.clear();
+    }
+
+    /// The stored time of age `age` (0: the newest).
+    fn get(&self, age: usize) -> Option<u64> {
+        let low = self.low_bits.get(age)?;
+        let behind = low_bits(self.newest).wrapping_sub(low);
+        self.newest.checked_sub(u64::from(behind))
     }
 
     /// The oldest stored time.
     pub(crate) fn oldest(&self) -> Option<u64> {
-        self.ring.oldest()
+        self.get(self.low_bits.len().checked_sub(1)?)
     }
 
     /// The fractional delay, samples behind the newest, of time `t_us`;
     /// `None` outside the stored span.
     pub(crate) fn delay_samples<T: Scalar>(&self, t_us: u64) -> Option<T> {
-        let newest = self.ring.get(0)?;
-        if t_us > newest || t_us < self.ring.oldest()? {
+        let newest = self.get(0)?;
+        if t_us > newest || t_us < self.oldest()? {
             return None;
         }
         if t_us == newest {
             return Some(T::zero());
         }
         // Smallest age whose time is <= t: times fall with age.
-        let (mut lo, mut hi) = (1usize, self.ring.len() - 1);
+        let (mut lo, mut hi) = (1usize, self.low_bits.len() - 1);
         while lo < hi {
             let mid = lo + (hi - lo) / 2;
-            if self.ring.get(mid)? <= t_us {
+            if self.get(mid)? <= t_us {
                 hi = mid;
             } else {
                 lo = mid + 1;
             }
         }
-        let (t_k, t_next) = (self.ring.get(lo)?, self.ring.get(lo - 1)?);
+        let (t_k, t_next) = (self.get(lo)?, self.get(lo - 1)?);
         let span = t_next.checked_sub(t_k).filter(|&s| s > 0)?;
         Some(T::lit(lo as f64) - T::lit((t_us - t_k) as f64) / T::lit(span as f64))
     }
@@ -182,6 +209,23 @@ mod tests {
         assert_eq!(d(14_001), None);
         times.clear();
         assert_eq!(times.delay_samples::<f64>(0), None);
+    }
+
+    #[test]
+    fn times_beyond_32_bits_read_back_exactly() {
+        let mut times = SampleTimes::<4>::new();
+        // Across the 2^32 µs boundary of the stored low bits.
+        let base = (1u64 << 32) - 1500;
+        for k in 0..6 {
+            times.push(base + k * 1000);
+        }
+        assert_eq!(times.oldest(), Some(base + 2000));
+        assert_eq!(times.delay_samples::<f64>(base + 3500), Some(1.5));
+        assert_eq!(times.delay_samples::<f64>(base + 1999), None);
+        // A span of more than 2^32 µs forgets the older times.
+        times.push(base + (1 << 32) + 3000);
+        assert_eq!(times.oldest(), Some(base + (1 << 32) + 3000));
+        assert_eq!(times.delay_samples::<f64>(base + 5000), None);
     }
 
     #[test]

@@ -1,0 +1,47 @@
+//! Where the bytes of a navigator are: `size_of` of every member of
+//! `DelayCompensatedNav<f32, 530>` (1 kHz IMU, 0.5 s maximum delay: the
+//! configuration of issue 12's limits), each bounded so that a regression
+//! shows, printed for docs/PERFORMANCE.md:
+//! `cargo test --lib nav::memory -- --nocapture`.
+
+use super::{DelayCompensatedNav, NavConfig};
+use core::mem::size_of_val;
+
+/// The history at 1 kHz for 0.5 s, as `benches/cortex-m4` sizes it.
+const HIST: usize = 530;
+
+#[test]
+fn size_of_every_member_at_half_a_second() {
+    let mut config = NavConfig::<f32>::default();
+    config.delay_loop.fusion.delay_max_s = 0.5;
+    let nav = Box::new(DelayCompensatedNav::<f32, HIST>::new(config).unwrap());
+    let members = [
+        (
+            "forward (output predictor)",
+            size_of_val(&nav.forward),
+            3_400,
+        ),
+        ("delay_loop", size_of_val(&nav.delay_loop), 14_200),
+        ("history", size_of_val(&nav.history), 12_800),
+        ("times", size_of_val(&nav.times), 2_200),
+        ("mags", size_of_val(&nav.mags), 3_100),
+        ("ekf", size_of_val(&nav.ekf), 2_100),
+        ("config", size_of_val(&nav.config), 400),
+        ("last_update", size_of_val(&nav.last_update), 400),
+        (
+            "whitening (accelerometer, gyroscope)",
+            size_of_val(&nav.accel_whitening) + size_of_val(&nav.gyro_whitening),
+            600,
+        ),
+        ("deltas", size_of_val(&nav.deltas), 200),
+    ];
+    let total = size_of_val(&*nav);
+    let listed: usize = members.iter().map(|m| m.1).sum();
+    for (name, bytes, bound) in members {
+        println!("{name}: {bytes} B");
+        assert!(bytes <= bound, "{name}: {bytes} B > {bound} B");
+    }
+    println!("other members: {} B", total - listed);
+    println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
+    assert!(total - listed <= 600);
+}
