@@ -55,11 +55,13 @@
 //! cursor that only moves forward with the horizon: amortized `O(1)`, at
 //! most `max_horizon_step_ratio + 1` moves per sample.
 //!
-//! # One entry every `stride` samples
+//! # One entry every `stride_us`
 //!
-//! The ring keeps one entry every `stride` IMU samples (chosen by the
-//! navigator so that `N` entries span its largest delay), not one per
-//! sample: the horizon moves at the filter rate, and the interpolation
+//! The ring keeps one entry at the first IMU sample `stride_us` or more
+//! after the newest (chosen by the navigator so that `N` entries span its
+//! largest delay: 9 samples at 1 kHz for 0.5 s), not one per sample; a
+//! stride in time, not in samples, keeps the spacing when the IMU rate
+//! drops. One entry per sample is not needed: the horizon moves at the filter rate, and the interpolation
 //! above errs by `O(h^4)` in the spacing `h` (a linear one would cost
 //! `jerk h^2 / 8` of velocity: 1e-4 m/s for a 10 m/s^3 jerk over 10 ms,
 //! above what the tests of perfect inputs allow). The present is the newest point of the
@@ -83,7 +85,7 @@ struct Entry<T: Scalar> {
 }
 
 /// The output predictor (see the module docs). `N` entries of history, one
-/// every `stride` IMU samples.
+/// every `stride_us` or more.
 #[derive(Debug, Clone)]
 pub(crate) struct ForwardReckoner<T: Scalar, const N: usize> {
     /// Present output state (16 states; biases are the EKF's latest).
@@ -91,8 +93,8 @@ pub(crate) struct ForwardReckoner<T: Scalar, const N: usize> {
     t_us: u64,
     last_input: (Vector3<T>, Vector3<T>),
     ring: Ring<Entry<T>, N>,
-    /// IMU samples per stored entry (at least 1).
-    stride: u32,
+    /// Least time between stored entries, µs.
+    stride_us: u64,
     /// IMU steps since the newest stored entry.
     unstored: u32,
     /// Entries pushed since the start; absolute index of the newest is `pushed - 1`.
@@ -131,9 +133,9 @@ fn set_attitude<T: Scalar>(x: &mut StateVector<T>, q: &UnitQuaternion<T>) {
 }
 
 impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
-    /// An output predictor storing one entry every `stride` IMU samples
-    /// (`0` counts as 1).
-    pub(crate) fn new(stride: u32) -> Self {
+    /// An output predictor storing an entry at the first IMU sample at
+    /// least `stride_us` after the newest entry (`0`: at every sample).
+    pub(crate) fn new(stride_us: u64) -> Self {
         let empty = Entry {
             t_us: 0,
             attitude: UnitQuaternion::identity(),
@@ -145,7 +147,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
             t_us: 0,
             last_input: (Vector3::zeros(), Vector3::zeros()),
             ring: Ring::new(empty),
-            stride: stride.max(1),
+            stride_us,
             unstored: 0,
             pushed: 0,
             cursor: 0,
@@ -245,7 +247,8 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
         self.unstored += 1;
-        if self.unstored >= self.stride {
+        let newest = self.ring.get(0).map_or(0, |e| e.t_us);
+        if t_us.saturating_sub(newest) >= self.stride_us {
             self.store();
         }
     }
@@ -308,7 +311,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
             a.position * h00 + a.velocity * (h10 * h) + b.position * h01 + b.velocity * (h11 * h);
         // Attitude and velocity: Lagrange through up to four entries around
         // `[a, b]` (the entry before `a` and the one after `b` when there),
-        // so that the spacing of `stride` samples costs `O(h^4)`, not the
+        // so that the spacing of the stride costs `O(h^4)`, not the
         // `O(h^2)` of a linear interpolation.
         let first = if self.cursor > oldest {
             self.cursor - 1

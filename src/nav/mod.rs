@@ -155,8 +155,8 @@ pub const HISTORY_ORDER: usize = 3;
 pub const MAG_QUEUE: usize = 128;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
-/// `stride` IMU samples, the stride chosen by [`DelayCompensatedNav::new`]
-/// so that the ring spans the largest delay (9 samples at 1 kHz and 0.5 s).
+/// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
+/// spans the largest delay (9 samples at 1 kHz and 0.5 s).
 pub const OUTPUT_ENTRIES: usize = 64;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
@@ -404,7 +404,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
         // The output ring spans `needed` samples with a stride per entry:
         // `OUTPUT_ENTRIES - 2` intervals, one more for the newest unstored.
-        let stride = (needed / (OUTPUT_ENTRIES - 2) as f64).ceil().max(1.0) as u32;
+        let stride = (needed / (OUTPUT_ENTRIES - 2) as f64).ceil();
+        let stride_us = (stride * 1e6 / config.imu_rate_hz.as_f64()).round() as u64;
         let rate = config.filter_rate_hz;
         let filter_period_us = if rate > T::zero() && rate < config.imu_rate_hz {
             (T::lit(1e6) / rate).round().as_f64() as u64
@@ -421,7 +422,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             history: FractionalDelayLine::new(),
             interpolation_taps: 0,
             times: SampleTimes::new(),
-            forward: ForwardReckoner::new(stride),
+            forward: ForwardReckoner::new(stride_us),
             deltas: DeltaAccumulator::new(),
             mags_due: false,
             filter_period_us,
