@@ -329,17 +329,24 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
             n += 1;
         }
         let stencil = stencil.get(..n)?;
+        // Times from `a`, s: one conversion per entry, one division per weight.
+        let mut at = [T::zero(); STENCIL];
+        for (d, e) in at.iter_mut().zip(stencil) {
+            *d = seconds_between(e.t_us, a.t_us);
+        }
+        let x = s * h;
         let qa = a.attitude.into_inner();
         let mut q = Quaternion::new(T::zero(), T::zero(), T::zero(), T::zero());
         let mut velocity = Vector3::zeros();
-        for (i, e) in stencil.iter().enumerate() {
-            let mut w = one;
-            for (j, other) in stencil.iter().enumerate() {
+        for (i, (e, &ti)) in stencil.iter().zip(&at).enumerate() {
+            let (mut num, mut den) = (one, one);
+            for (j, &tj) in at.iter().take(n).enumerate() {
                 if j != i {
-                    w *= seconds_between::<T>(t_h, other.t_us)
-                        / seconds_between::<T>(e.t_us, other.t_us);
+                    num *= x - tj;
+                    den *= ti - tj;
                 }
             }
+            let w = num / den;
             let qe = e.attitude.into_inner();
             // Same hemisphere as `a`.
             let qe = if qa.dot(&qe) < T::zero() { -qe } else { qe };

@@ -404,8 +404,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
         // The output ring spans `needed` samples with a stride per entry:
         // `OUTPUT_ENTRIES - 2` intervals, one more for the newest unstored.
-        let stride = (needed / (OUTPUT_ENTRIES - 2) as f64).ceil();
-        let stride_us = (stride * 1e6 / config.imu_rate_hz.as_f64()).round() as u64;
+        let stride = (needed as u64).div_ceil(OUTPUT_ENTRIES as u64 - 2);
+        let stride_us = (T::lit(stride as f64 * 1e6) / config.imu_rate_hz)
+            .round()
+            .as_f64() as u64;
         let rate = config.filter_rate_hz;
         let filter_period_us = if rate > T::zero() && rate < config.imu_rate_hz {
             (T::lit(1e6) / rate).round().as_f64() as u64
