@@ -309,23 +309,34 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         let h11 = s3 - s2;
         let position =
             a.position * h00 + a.velocity * (h10 * h) + b.position * h01 + b.velocity * (h11 * h);
-        // Attitude and velocity: Lagrange through up to four entries around
-        // `[a, b]` (the entry before `a` and the one after `b` when there),
-        // so that the spacing of the stride costs `O(h^4)`, not the
-        // `O(h^2)` of a linear interpolation.
-        let first = if self.cursor > oldest {
-            self.cursor - 1
-        } else {
-            self.cursor
+        // Attitude and velocity: Lagrange through `a`, `b` and their outer
+        // neighbours when spaced like them (within `[h/2, 2h]`: an uneven
+        // stencil, e.g. across an IMU gap or with the present just after
+        // the newest entry, would weigh a near-difference heavily), so that
+        // the stride costs `O(h^4)`, not the `O(h^2)` of a linear
+        // interpolation. Linear when the result is not a usable rotation.
+        let even = |d: u64| {
+            let d: T = us_to_s(d);
+            d + d >= h && d <= h + h
         };
-        // The present, unless just stored (then it is the newest entry).
+        let mut stencil = [a, b, a, a];
+        let mut n = 2;
+        if self.cursor > oldest
+            && let Some(e) = self.entry(self.cursor - 1)
+            && even(a.t_us - e.t_us)
+        {
+            stencil[n] = e;
+            n += 1;
+        }
+        // The present (index `pushed`), unless just stored: then it is the
+        // newest entry.
         let newest = self.pushed.saturating_sub(u64::from(self.unstored == 0));
-        let last = (first + STENCIL as u64 - 1).min(newest);
-        let first = last.saturating_sub(STENCIL as u64 - 1).max(oldest);
-        let mut stencil = [a; STENCIL];
-        let mut n = 0;
-        for (slot, i) in stencil.iter_mut().zip(first..=last) {
-            *slot = self.entry(i)?;
+        if self.cursor + 2 <= newest
+            && let Some(e) = self.entry(self.cursor + 2)
+            && e.t_us > b.t_us
+            && even(e.t_us - b.t_us)
+        {
+            stencil[n] = e;
             n += 1;
         }
         let stencil = stencil.get(..n)?;
@@ -336,6 +347,11 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         }
         let x = s * h;
         let qa = a.attitude.into_inner();
+        // Same hemisphere as `a`.
+        let aligned = |e: &Entry<T>| {
+            let q = e.attitude.into_inner();
+            if qa.dot(&q) < T::zero() { -q } else { q }
+        };
         let mut q = Quaternion::new(T::zero(), T::zero(), T::zero(), T::zero());
         let mut velocity = Vector3::zeros();
         for (i, (e, &ti)) in stencil.iter().zip(&at).enumerate() {
@@ -347,11 +363,13 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
                 }
             }
             let w = num / den;
-            let qe = e.attitude.into_inner();
-            // Same hemisphere as `a`.
-            let qe = if qa.dot(&qe) < T::zero() { -qe } else { qe };
-            q += qe * w;
+            q += aligned(e) * w;
             velocity += e.velocity * w;
+        }
+        let norm = q.norm();
+        if !(norm > T::lit(0.5) && norm < T::lit(1.5) && velocity.iter().all(|v| v.is_finite())) {
+            q = qa * (one - s) + aligned(&b) * s;
+            velocity = a.velocity * (one - s) + b.velocity * s;
         }
         Some(Entry {
             t_us: t_h,

@@ -65,8 +65,9 @@
 //! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
 //! time reaches theirs (at the first filter step at or after them; the
 //! fusion runs at the IMU sample after that step, the EKF unmoved, so that
-//! no call does a prediction and a fusion together). A full queue drops its oldest sample
-//! ([`NavRefusals::mag_dropped`]).
+//! no call does a prediction and a fusion together). A full queue keeps every
+//! other waiting sample (it then spans the same time at half the rate) and
+//! counts the others in [`NavRefusals::mag_dropped`].
 //!
 //! # Forward reckoning in `O(1)`
 //! The output predictor of PX4's EKF2, made exact to first order without
@@ -151,8 +152,11 @@ use timeline::{ClockRefusal, SampleTimes, StreamClock};
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
 
-/// Magnetometer samples waiting for the horizon.
-pub const MAG_QUEUE: usize = 128;
+/// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
+/// range holds at most 52 (the range, the filter period and one sample);
+/// a longer range or a faster magnetometer fills it, and a full queue is
+/// thinned to every other sample (module docs).
+pub const MAG_QUEUE: usize = 64;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
 /// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
@@ -215,7 +219,8 @@ pub struct NavRefusals {
     pub mag_time: u32,
     /// Magnetometer samples stamped more than `max_time_jump_us` after the newest IMU sample.
     pub mag_ahead: u32,
-    /// Magnetometer samples dropped from a full queue.
+    /// Magnetometer samples dropped from a full queue (every other waiting
+    /// sample when it fills).
     pub mag_dropped: u32,
     /// Horizon steps the EKF refused (e.g. a step longer than its maximum).
     pub horizon_refused: u32,
@@ -240,6 +245,20 @@ pub struct NavWork {
     pub ring_cursor_moves: u64,
     /// Products of the delay loop's sliding correlation.
     pub correlation_multiply_adds: u64,
+}
+
+/// Keeps every other value of `ring` (the newest kept), oldest first;
+/// returns how many were dropped.
+fn thin_out<E: Copy, const N: usize>(ring: &mut Ring<E, N>) -> u32 {
+    let len = ring.len();
+    let mut dropped = 0;
+    for k in 0..len {
+        match ring.pop_oldest() {
+            Some(v) if (len - k) % 2 == 1 => ring.push(v),
+            _ => dropped += 1,
+        }
+    }
+    dropped
 }
 
 fn bump(counter: &mut u32) {
@@ -1119,7 +1138,8 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             &mut self.refusals.mag_time,
         )?;
         if self.mags.len() == MAG_QUEUE {
-            bump(&mut self.refusals.mag_dropped);
+            let dropped = thin_out(&mut self.mags);
+            self.refusals.mag_dropped = self.refusals.mag_dropped.saturating_add(dropped);
         }
         self.mags.push(m);
         Ok(MagOutcome::Queued)
