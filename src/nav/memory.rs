@@ -41,6 +41,9 @@ fn size_of_every_member_at_half_a_second() {
         println!("{name}: {bytes} B");
         assert!(bytes <= bound, "{name}: {bytes} B > {bound} B");
     }
+    let correlator = size_of::<crate::delay::SlidingCorrelator<f32, 250, 61, 384>>();
+    println!("  of which the delay loop's SlidingCorrelator<f32, 250, 61, 384>: {correlator} B");
+    assert!(correlator <= 11_000);
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
