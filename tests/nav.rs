@@ -555,11 +555,42 @@ macro_rules! nav_tests {
                     };
                     assert_eq!(nav.push_mag(&m).unwrap(), MagOutcome::Queued);
                 }
-                // Full at MAG_QUEUE: thinned to every other sample, then
-                // `extra` more.
+                // Full at MAG_QUEUE: thinned to every other sample (2 µs
+                // apart), then the `extra` ones queued at that spacing.
                 let full = delaynav::nav::MAG_QUEUE;
-                assert_eq!(nav.queued_mag_samples(), full / 2 + extra);
-                assert_eq!(nav.refusals().mag_dropped, (full / 2) as u32);
+                assert_eq!(nav.queued_mag_samples(), full / 2 + extra / 2);
+                assert_eq!(nav.refusals().mag_dropped, (full / 2 + extra / 2) as u32);
+            }
+
+            /// A delay longer than the magnetometer queue spans (0.95 s of
+            /// 100 Hz samples in 64) thins the queue: fewer samples reach
+            /// the EKF, counted, but it keeps fusing them.
+            #[test]
+            fn a_delay_beyond_the_magnetometer_queue_still_fuses() {
+                let mode = DelayMode::Fixed {
+                    delay_s: T::lit(0.95),
+                };
+                let mut nav = DelayCompensatedNav::<T>::new(config(mode, 1000.0)).unwrap();
+                let events = fly(&lively(4), &Suite::simulator(), 8.0, |_| 0.95, None);
+                let mags = events
+                    .iter()
+                    .filter(|e| matches!(e, FlightEvent::Mag(..)))
+                    .count();
+                for event in &events {
+                    feed(&mut nav, event);
+                }
+                let ekf = nav.horizon_filter();
+                let last = ekf.last_mag_fusion().expect("a magnetometer fusion").t_us;
+                let t = ekf.time_us().unwrap();
+                assert!(
+                    t - last <= 150_000,
+                    "last fusion at {last} us, filter at {t} us"
+                );
+                let dropped = nav.refusals().mag_dropped as usize;
+                assert!(
+                    dropped > mags / 4 && dropped < mags * 3 / 4,
+                    "{dropped} of {mags}"
+                );
             }
 
             /// Work over the last 5 s of a 20 s run with the delay `tau`.

@@ -66,8 +66,11 @@
 //! time reaches theirs (at the first filter step at or after them; the
 //! fusion runs at the IMU sample after that step, the EKF unmoved, so that
 //! no call does a prediction and a fusion together). A full queue keeps every
-//! other waiting sample (it then spans the same time at half the rate) and
-//! counts the others in [`NavRefusals::mag_dropped`].
+//! other waiting sample (it then spans the same time at half the rate), and
+//! later samples are queued at that spacing until it drains to a quarter:
+//! the magnetometer is then fused at half its rate (a quarter at twice the
+//! span...) instead of not at all. The samples left out are counted in
+//! [`NavRefusals::mag_dropped`] (their push still answers `Queued`).
 //!
 //! # Forward reckoning in `O(1)`
 //! The output predictor of PX4's EKF2, made exact to first order without
@@ -153,9 +156,9 @@ use timeline::{ClockRefusal, SampleTimes, StreamClock};
 pub const HISTORY_ORDER: usize = 3;
 
 /// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
-/// range holds at most 52 (the range, the filter period and one sample);
-/// a longer range or a faster magnetometer fills it, and a full queue is
-/// thinned to every other sample (module docs).
+/// holds at most 52 (the delay, the filter period and one sample); a longer
+/// delay or a faster magnetometer fills it, and a full queue is thinned to
+/// every other sample (module docs).
 pub const MAG_QUEUE: usize = 64;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
@@ -375,6 +378,9 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// The horizon EKF's prediction period, µs (0: every IMU sample).
     filter_period_us: u64,
     mags: Ring<Mag<T>, MAG_QUEUE>,
+    /// Least time between queued magnetometer samples, µs: 0 until the
+    /// queue fills, then the spacing of the thinned queue (module docs).
+    mag_spacing_us: u64,
     last_imu: Option<Imu<T>>,
     imu_clock: StreamClock,
     gps_clock: StreamClock,
@@ -451,6 +457,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 t_us: 0,
                 field_body: Vector3::zeros(),
             }),
+            mag_spacing_us: 0,
             last_imu: None,
             imu_clock: StreamClock::default(),
             gps_clock: StreamClock::default(),
@@ -606,6 +613,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.deltas.clear();
         self.mags_due = false;
         self.mags.clear();
+        self.mag_spacing_us = 0;
         self.last_reset = Some(ResetRecord {
             t_us: self.imu_clock.last(),
             cause: ResetCause::Requested,
@@ -1137,9 +1145,21 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             &mut self.refusals.mag_ahead,
             &mut self.refusals.mag_time,
         )?;
+        if self.mags.len() <= MAG_QUEUE / 4 {
+            self.mag_spacing_us = 0;
+        }
+        let newest = self.mags.get(0).map(|n| n.t_us);
+        if newest.is_some_and(|n| m.t_us < n.saturating_add(self.mag_spacing_us)) {
+            bump(&mut self.refusals.mag_dropped);
+            return Ok(MagOutcome::Queued);
+        }
         if self.mags.len() == MAG_QUEUE {
             let dropped = thin_out(&mut self.mags);
             self.refusals.mag_dropped = self.refusals.mag_dropped.saturating_add(dropped);
+            if let (Some(oldest), Some(newest)) = (self.mags.oldest(), self.mags.get(0)) {
+                let gaps = (self.mags.len() as u64).saturating_sub(1).max(1);
+                self.mag_spacing_us = (newest.t_us - oldest.t_us) / gaps;
+            }
         }
         self.mags.push(m);
         Ok(MagOutcome::Queued)
