@@ -1859,3 +1859,64 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod json_contract {
+    use super::*;
+
+    /// Issue 14's contract of `reproduce --seeds N --json PATH`, on two
+    /// short seeds: each scenario's `estimators` has `bound`, `fusion_nav`
+    /// and `proposed_f32`; each entry `tilt_deg`, `heading_deg`, every
+    /// figure's `<name>_ci95` and `nees_mean`; the top level the seeds.
+    #[test]
+    fn the_run_json_has_the_issue_keys() {
+        let options = RunOptions {
+            delay_s: None,
+            duration_s: 12.0,
+            skip_s: 10.0,
+            keep_trace: false,
+            calibrated: false,
+            threads: 2,
+            gps_rate_hz: None,
+            imu_rate_hz: None,
+        };
+        let names = ["bound", "proposed", "proposed_f32", "fusion_nav"];
+        let registry: Vec<Estimator> = estimators()
+            .into_iter()
+            .filter(|e| names.contains(&e.name))
+            .collect();
+        assert_eq!(registry.len(), names.len());
+        let progress = Mutex::new(Progress {
+            done: 0,
+            total: 2 * registry.len(),
+            started: Instant::now(),
+        });
+        let seeds = [1, 2];
+        let result = run_scenario(Scenario::Low, &seeds, &options, &registry, &progress);
+        let json = to_json(&[result], &seeds, options.duration_s, options.skip_s);
+        assert_eq!(json["seeds"], json!([1, 2]));
+        let estimators = &json["scenarios"][0]["estimators"];
+        for name in names {
+            let entry = estimators[name].as_object().expect("an entry per row");
+            for key in ["tilt_deg", "heading_deg", "vel_m_s", "pos_m"] {
+                assert!(
+                    entry[key].as_f64().is_some_and(f64::is_finite),
+                    "{name}.{key}"
+                );
+                let ci = entry[&format!("{key}_ci95")].as_array().expect("a pair");
+                assert!(
+                    ci.len() == 2 && ci.iter().all(Value::is_number),
+                    "{name}.{key}_ci95"
+                );
+            }
+            for (figure, _) in FIGURES {
+                assert!(
+                    entry.contains_key(&format!("{figure}_ci95")),
+                    "{name}.{figure}_ci95"
+                );
+            }
+            assert!(entry.contains_key("nees_mean"), "{name}.nees_mean");
+        }
+        assert!(estimators["proposed_f32"]["nees_mean"].is_number());
+    }
+}
