@@ -154,8 +154,10 @@ impl BoundConfig {
 
     /// The prior of a filter configured with `filter` (its initial standard
     /// deviations, the heading one with a magnetometer), and the
-    /// magnetometer as it uses it: the whole field with
-    /// `mag_corrects_tilt`, else a heading after its tilt alignment.
+    /// magnetometer as it uses it ([`BoundMagnetometer::FilterHeading`]):
+    /// with `mag_corrects_tilt`, the optimal gain throughout (threshold 0),
+    /// else its heading-only gain once the tilt is below its alignment
+    /// threshold.
     pub fn for_filter(filter: &Ekf16Config<f64>) -> Self {
         Self {
             magnetometer: BoundMagnetometer::FilterHeading,
