@@ -98,6 +98,11 @@ pub enum Error {
     /// The operation needs an initialized estimator.
     #[error("estimator not initialized")]
     NotInitialized,
+    /// The estimator is a blank value (`BLANK`) that no successful
+    /// `configure` has set up yet (or whose last `configure` failed): every
+    /// sample is refused.
+    #[error("estimator not configured (a blank value: call configure)")]
+    NotConfigured,
 }
 
 /// The bound a configuration value broke (see [`Error::InvalidConfig`]).
