@@ -44,13 +44,15 @@ fn events(seconds: f64) -> Vec<FlightEvent> {
     fly(&flight, &Suite::simulator(), seconds, |_| 0.2, None)
 }
 
-/// Every estimate (present and horizon) after each IMU sample, and the
-/// health at the end.
+/// The present and the horizon estimate after one IMU sample.
+type Estimates<T> = (Option<Estimate<T>>, Option<Estimate<T>>);
+
+/// Every estimate (present and horizon) after each IMU sample.
 fn trace<T: Scalar, N: Navigator<T>>(
     nav: &mut N,
     events: &[FlightEvent],
     horizon: impl Fn(&N) -> Option<Estimate<T>>,
-) -> Vec<(Option<Estimate<T>>, Option<Estimate<T>>)> {
+) -> Vec<Estimates<T>> {
     events
         .iter()
         .filter_map(|e| feed(nav, e).map(|_| (nav.estimate(), horizon(nav))))
