@@ -105,6 +105,15 @@ pub enum Error {
     NotConfigured,
 }
 
+impl Error {
+    /// [`Error::NotConfigured`], built off the hot path: the check every
+    /// push makes first then costs its callers no code layout.
+    #[cold]
+    pub(crate) fn not_configured() -> Self {
+        Self::NotConfigured
+    }
+}
+
 /// The bound a configuration value broke (see [`Error::InvalidConfig`]).
 /// Bounds that come from other fields carry those fields' values.
 #[derive(Debug, Clone, Copy, PartialEq)]

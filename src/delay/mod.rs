@@ -813,7 +813,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// on error.
     pub fn set_delay(&mut self, delay_s: T, std_s: T) -> Result<(), Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         self.fusion.reset(delay_s, std_s)?;
         self.locked = std_s <= self.config.lock_std_s;
@@ -828,7 +828,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// values or beyond [`MAX_INPUT_MAGNITUDE`], time not increasing.
     pub fn push_imu(&mut self, t_us: u64, accel_ned_m_s2: Vector3<T>) -> Result<(), Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let gap = admit_sample(
             "imu",
@@ -862,7 +862,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         velocity_ned_m_s: Vector3<T>,
     ) -> Result<Option<DelayUpdate<T>>, Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let gap = admit_sample(
             "gps",

@@ -623,7 +623,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// hold when the inputs are constant).
     pub(crate) fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
         let max_w = self.config.max_gyro_rad_s;
@@ -677,7 +677,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// the mean rate and specific force over the step, `Δθ / T`, `Δv / T`.
     pub(crate) fn push_deltas(&mut self, d: &ImuDeltas<T>) -> Result<(), Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let s = d.last;
         if !(all_finite_fixed(&d.delta_angle_rad) && all_finite_fixed(&d.delta_velocity_m_s)) {
@@ -812,7 +812,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         gps: &G,
     ) -> Result<GpsStep<T>, Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
         check_time("gps", self.gps_clock_us, fix.t_us)
@@ -1145,7 +1145,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         mag: &M,
     ) -> Result<MagOutcome<T>, Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         check_time("mag", self.mag_clock_us, m.t_us)

@@ -1078,7 +1078,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// history and returns [`Error::StepTooLong`] after keeping the sample.
     fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let s = self.check_imu(imu)?;
         let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
@@ -1160,7 +1160,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// a velocity beyond the loop's plausible range, time not increasing.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let fix = checked_gps(gps).inspect_err(|e| {
             bump(&mut self.refusals.gps_invalid);
@@ -1235,7 +1235,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// Refused, state unchanged: non-finite or zero field, time not increasing.
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
         if !self.configured {
-            return Err(Error::NotConfigured);
+            return Err(Error::not_configured());
         }
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         let newest_imu = self.imu_clock.last().or(Some(m.t_us));
