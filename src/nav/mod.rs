@@ -113,6 +113,11 @@
 //! `HIST x (16 x 8 + 8)` = 136 bytes in `f64` (150 KB), plus the delay loop
 //! and the EKF (see `docs/nav.md` for measured totals). At 200 Hz a
 //! `HIST` of 256 covers a 1 s delay range.
+//!
+//! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
+//! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
+//! no stack copy of the navigator at any time (`docs/nav.md`,
+//! "Construction in place").
 
 pub mod config;
 mod forward;
