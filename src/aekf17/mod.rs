@@ -240,7 +240,8 @@ impl<T: Scalar> AugmentedEkf17<T> {
         })
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a filter not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &Aekf17Config<T> {
         &self.config
     }

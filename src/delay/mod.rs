@@ -756,7 +756,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.status
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a loop not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &DelayLoopConfig<T> {
         &self.config
     }

@@ -356,7 +356,8 @@ impl<T: Scalar> Ekf16<T> {
         })
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a filter not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &Ekf16Config<T> {
         self.core.config()
     }

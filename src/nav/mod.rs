@@ -566,7 +566,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         Ok(())
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a navigator not configured:
+    /// see [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &NavConfig<T> {
         &self.config
     }
