@@ -37,7 +37,7 @@ pub(crate) struct SampleTimes<const N: usize> {
 }
 
 impl<const N: usize> SampleTimes<N> {
-    pub(crate) fn new() -> Self {
+    pub(crate) const fn new() -> Self {
         Self { ring: Ring::new(0) }
     }
 
@@ -100,6 +100,12 @@ pub(crate) enum ClockRefusal {
 }
 
 impl StreamClock {
+    /// No sample yet (the `const` of [`Default::default`]).
+    pub(crate) const NEW: Self = Self {
+        last: None,
+        candidate: None,
+    };
+
     /// The last accepted time.
     pub(crate) fn last(&self) -> Option<u64> {
         self.last
