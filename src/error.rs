@@ -98,6 +98,20 @@ pub enum Error {
     /// The operation needs an initialized estimator.
     #[error("estimator not initialized")]
     NotInitialized,
+    /// The estimator is a blank value (`BLANK`) that no successful
+    /// `configure` has set up yet (or whose last `configure` failed): every
+    /// sample is refused.
+    #[error("estimator not configured (a blank value: call configure)")]
+    NotConfigured,
+}
+
+impl Error {
+    /// [`Error::NotConfigured`], built off the hot path: the check every
+    /// push makes first then costs its callers no code layout.
+    #[cold]
+    pub(crate) fn not_configured() -> Self {
+        Self::NotConfigured
+    }
 }
 
 /// The bound a configuration value broke (see [`Error::InvalidConfig`]).

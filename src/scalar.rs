@@ -18,6 +18,10 @@ pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
     fn as_f64(self) -> f64;
     /// Machine epsilon of the precision.
     const EPS: Self;
+    /// Zero, usable in `const` items (the blank values of the estimators).
+    const ZERO: Self;
+    /// One, usable in `const` items.
+    const ONE: Self;
     /// Largest rotation angle (radians) for which
     /// [`quaternion_from_rotation_vector`](crate::geo::quaternion_from_rotation_vector)
     /// uses its series instead of `sin`/`cos`: where the first neglected
@@ -37,6 +41,8 @@ impl Scalar for f32 {
         self as f64
     }
     const EPS: Self = f32::EPSILON;
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
     const SMALL_ROTATION_MAX_RAD: f64 = 1.0;
     #[inline]
     fn seconds_from_us(us: u64) -> Self {
@@ -62,6 +68,8 @@ impl Scalar for f64 {
         self
     }
     const EPS: Self = f64::EPSILON;
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
     const SMALL_ROTATION_MAX_RAD: f64 = 0.2;
     #[inline]
     fn seconds_from_us(us: u64) -> Self {
@@ -107,4 +115,21 @@ pub fn all_finite_fixed<T: Scalar, const R: usize, const C: usize>(
     m: &nalgebra::SMatrix<T, R, C>,
 ) -> bool {
     m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite())
+}
+
+/// A fixed-size matrix of zeros, in `const` items.
+pub(crate) const fn zeros_const<T: Scalar, const R: usize, const C: usize>()
+-> nalgebra::SMatrix<T, R, C> {
+    nalgebra::SMatrix::from_array_storage(nalgebra::ArrayStorage([[T::ZERO; R]; C]))
+}
+
+/// A zero quaternion typed as a unit one: the placeholder of an attitude
+/// in a `const` blank value, set before it is read.
+pub(crate) const fn zero_quaternion_const<T: Scalar>() -> nalgebra::UnitQuaternion<T> {
+    nalgebra::Unit::new_unchecked(nalgebra::Quaternion::new(
+        T::ZERO,
+        T::ZERO,
+        T::ZERO,
+        T::ZERO,
+    ))
 }

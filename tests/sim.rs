@@ -778,3 +778,54 @@ fn trajectory_bound_is_below_the_navigator_given_the_true_delay() {
         );
     }
 }
+
+/// The filters' magnetometer (a tilt-compensated heading) carries less than
+/// the whole field, and the filters' heading-only gain cannot beat the
+/// optimal gain on that heading: at every instant, so in every RMS.
+#[test]
+fn trajectory_bound_orders_the_magnetometer_models() {
+    let config = SimConfig {
+        duration_s: 30.0,
+        ..SimConfig::for_scenario(Scenario::Low, 1)
+    };
+    let events = run(config.clone());
+    let rms = |b: BoundConfig| {
+        trajectory_bound(&events, &config, &b)
+            .unwrap()
+            .rms_after(10_000_000)
+            .unwrap()
+    };
+    let filter = config.sensors.ekf16_config::<f64>();
+    let field = rms(BoundConfig::for_sensors(&config.sensors));
+    let heading = rms(BoundConfig {
+        mag_tilt_alignment_std_rad: 0.0,
+        ..BoundConfig::for_filter(&filter)
+    });
+    let gain = rms(BoundConfig::for_filter(&filter));
+    let below = |a: f64, b: f64| a <= b * (1.0 + 1e-9);
+    for (name, f, h, g) in [
+        ("tilt", field.tilt_rad, heading.tilt_rad, gain.tilt_rad),
+        (
+            "heading",
+            field.heading_rad,
+            heading.heading_rad,
+            gain.heading_rad,
+        ),
+        (
+            "velocity",
+            field.velocity_m_s,
+            heading.velocity_m_s,
+            gain.velocity_m_s,
+        ),
+    ] {
+        assert!(
+            below(f, h) && below(h, g),
+            "{name}: field {f}, heading {h}, gain {g}"
+        );
+    }
+    // The field's tilt is what the heading lacks: a clear gap, not rounding.
+    assert!(
+        heading.tilt_rad > 1.3 * field.tilt_rad,
+        "{heading:?} {field:?}"
+    );
+}

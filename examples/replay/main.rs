@@ -324,7 +324,7 @@ impl HealthSummary {
     fn of_navigator(h: &Health<f64>) -> Self {
         let mut summary = Self::of_filter(h.ekf_refusals, None);
         let n = h.refusals;
-        let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead, imu_gap,
+        let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead,
             gps_invalid, gps_time, gps_accuracy, gps_ahead, gps_mixed_frames, mag_invalid,
             mag_time, mag_ahead, mag_dropped, horizon_refused, delay_loop_refused);
         summary.refused = non_zero(own)
@@ -337,6 +337,21 @@ impl HealthSummary {
                     .map(|(k, v)| (format!("horizon.{k}"), v)),
             )
             .collect();
+        // An IMU gap is not a refused sample: the history restarts (a reset
+        // whose cause `last_reset` names, `ImuGap`), so it is listed with
+        // the horizon filter's GPS resets.
+        summary.resets = non_zero(vec![(
+            "nav.imu_gap_restarts".to_string(),
+            u64::from(n.imu_gap),
+        )])
+        .into_iter()
+        .chain(
+            summary
+                .resets
+                .into_iter()
+                .map(|(k, v)| (format!("horizon.{k}"), v)),
+        )
+        .collect();
         summary.alignment = Some(format!("{:?}", h.alignment));
         summary.last_reset = h.last_reset.map(|r| {
             let at = r

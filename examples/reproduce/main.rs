@@ -16,8 +16,9 @@
 //! ```
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
-//! true trajectory), `bound_heading_mag` (the same with a heading-only
-//! magnetometer, not a bound), `bound_calibrated` (the bound with the
+//! true trajectory), `bound_filter_heading` (the same taking from the
+//! magnetometer only what the estimators take: a tilt-compensated heading),
+//! `bound_calibrated` (the bound with the
 //! biases' prior of the IMU calibration below), the crate's estimators in
 //! `f64` and `f32`, `calibrated` (`proposed` starting from a pre-flight IMU bias calibration,
 //! [`imu_calibration`]), and the peer `fusion_nav` (module `fusion_nav`).
@@ -146,6 +147,10 @@ struct Args {
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
     delay_suite: bool,
+    /// Run only the bound study instead of the tables: the bound with each
+    /// difference to the estimators in turn, beside `oracle` and `proposed`.
+    #[arg(long)]
+    bound_study: bool,
     /// Prediction rate of the navigator's horizon filter, Hz; 0 predicts at
     /// every IMU sample [default: `NavConfig`'s].
     #[arg(long)]
@@ -401,20 +406,95 @@ fn run_bound_calibrated(s: &RunSetup) -> RunScore {
     linearized(s, config)
 }
 
-/// The same linearized filter taking only a heading from the magnetometer
-/// (the noise floor's model). Not a bound: the estimators' tilt-coupled
-/// heading update takes some tilt from the magnetometer too.
-fn run_bound_heading_mag(s: &RunSetup) -> RunScore {
+/// The bound of a filter taking from the magnetometer what the estimators
+/// take, the heading of the field de-rotated with its estimated tilt, with
+/// the optimal gain throughout.
+fn run_bound_filter_heading(s: &RunSetup) -> RunScore {
     let config = BoundConfig {
-        magnetometer: BoundMagnetometer::Heading,
-        ..BoundConfig::for_sensors(&s.config.sensors)
+        mag_tilt_alignment_std_rad: 0.0,
+        ..BoundConfig::for_filter(&ekf16_config(&s.config))
     };
     linearized(s, config)
 }
 
+/// Not a bound: the same linearized filter with the estimators' own gain on
+/// that heading (heading-only once the tilt is known,
+/// `BoundConfig::for_filter`), the covariance their gain structure reaches
+/// about the truth.
+fn run_filter_gain(s: &RunSetup) -> RunScore {
+    linearized(s, BoundConfig::for_filter(&ekf16_config(&s.config)))
+}
+
+/// `--bound-study`: what each difference between `bound` and the
+/// estimators is worth, one at a time (docs/RESULTS.md, "The bound gap").
+fn bound_study() -> Vec<Estimator> {
+    let row = |name, run| Estimator { name, run };
+    vec![
+        // The bound's prior before it was taken from the filters' config:
+        // heading 0.5 rad, position and velocity the GPS noise.
+        row("bound_gps_prior", |s| {
+            let sensors = &s.config.sensors;
+            linearized(
+                s,
+                BoundConfig {
+                    heading_std_rad: 0.5,
+                    position_std_m: sensors.gps_position_var_m2.sqrt(),
+                    velocity_std_m_s: sensors.gps_velocity_var_m2_s2.sqrt(),
+                    ..BoundConfig::for_sensors(sensors)
+                },
+            )
+        }),
+        row("bound", run_bound),
+        row("bound_filter_walks", |s| {
+            with_filter_walks(s, BoundConfig::for_sensors(&s.config.sensors))
+        }),
+        row("bound_heading_only", |s| {
+            linearized(
+                s,
+                BoundConfig {
+                    magnetometer: BoundMagnetometer::Heading,
+                    ..BoundConfig::for_sensors(&s.config.sensors)
+                },
+            )
+        }),
+        row("bound_filter_heading", run_bound_filter_heading),
+        row("filter_gain", run_filter_gain),
+        row("filter_gain_walks", |s| {
+            with_filter_walks(s, BoundConfig::for_filter(&ekf16_config(&s.config)))
+        }),
+        row("bound_known_biases", |s| {
+            linearized(
+                s,
+                BoundConfig {
+                    accel_bias_std_m_s2: 0.0,
+                    gyro_bias_std_rad_s: 0.0,
+                    ..BoundConfig::for_sensors(&s.config.sensors)
+                },
+            )
+        }),
+        row("oracle", run_oracle::<f64>),
+        row("proposed", run_proposed::<f64>),
+    ]
+}
+
+/// The bound with the bias random walks the filters are configured with
+/// (`Ekf16Config`) instead of the simulator's (constant biases).
+fn with_filter_walks(s: &RunSetup, config: BoundConfig) -> RunScore {
+    let filter = ekf16_config::<f64>(&s.config);
+    let mut sim = s.config.clone();
+    sim.sensors.gyro_bias_walk_rad_s_sqrt_s = filter.gyro_bias_random_walk;
+    sim.sensors.accel_bias_walk_m_s2_sqrt_s = filter.accel_bias_random_walk;
+    linearized_with(s, &sim, config)
+}
+
 fn linearized(s: &RunSetup, config: BoundConfig) -> RunScore {
+    linearized_with(s, &s.config, config)
+}
+
+/// [`linearized`] with the noise of `sim` (the run's events, another model).
+fn linearized_with(s: &RunSetup, sim: &SimConfig, config: BoundConfig) -> RunScore {
     let started = Instant::now();
-    let bound = trajectory_bound(&s.events, &s.config, &config).expect("valid bound config");
+    let bound = trajectory_bound(&s.events, sim, &config).expect("valid bound config");
     let busy = started.elapsed();
     let rms = bound.rms_after(s.skip_us);
     let nan = f64::NAN;
@@ -447,7 +527,7 @@ fn estimators() -> Vec<Estimator> {
     let row = |name, run| Estimator { name, run };
     vec![
         row("bound", run_bound),
-        row("bound_heading_mag", run_bound_heading_mag),
+        row("bound_filter_heading", run_bound_filter_heading),
         row("bound_calibrated", run_bound_calibrated),
         row("ekf16", run_ekf16::<f64>),
         row("aekf17", run_aekf17::<f64>),
@@ -1552,9 +1632,9 @@ fn run_scenario(
     scenario: Scenario,
     seeds: &[u64],
     options: &RunOptions,
+    registry: &[Estimator],
     progress: &Mutex<Progress>,
 ) -> ScenarioResult {
-    let registry = estimators();
     let next = AtomicUsize::new(0);
     let done: Mutex<Vec<Option<SeedResult>>> = Mutex::new(seeds.iter().map(|_| None).collect());
     std::thread::scope(|scope| {
@@ -1566,7 +1646,7 @@ fn run_scenario(
                         break;
                     };
                     let first = k == 0 && options.keep_trace;
-                    let result = run_seed(scenario, seed, first, options, &registry, progress);
+                    let result = run_seed(scenario, seed, first, options, registry, progress);
                     if let Ok(mut d) = done.lock() {
                         d[k] = Some(result);
                     }
@@ -1723,9 +1803,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     let seeds: Vec<u64> = (args.seed..args.seed + seeds_n).collect();
+    let registry = if args.bound_study {
+        bound_study()
+    } else {
+        estimators()
+    };
     let progress = Mutex::new(Progress {
         done: 0,
-        total: scenarios.len() * seeds.len() * estimators().len(),
+        total: scenarios.len() * seeds.len() * registry.len(),
         started: Instant::now(),
     });
     if let Some(dir) = &args.csv {
@@ -1753,7 +1838,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let results: Vec<ScenarioResult> = scenarios
         .iter()
-        .map(|&s| run_scenario(s, &seeds, &options, &progress))
+        .map(|&s| run_scenario(s, &seeds, &options, &registry, &progress))
         .collect();
     print!(
         "{}",
@@ -1773,4 +1858,65 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod json_contract {
+    use super::*;
+
+    /// Issue 14's contract of `reproduce --seeds N --json PATH`, on two
+    /// short seeds: each scenario's `estimators` has `bound`, `fusion_nav`
+    /// and `proposed_f32`; each entry `tilt_deg`, `heading_deg`, every
+    /// figure's `<name>_ci95` and `nees_mean`; the top level the seeds.
+    #[test]
+    fn the_run_json_has_the_issue_keys() {
+        let options = RunOptions {
+            delay_s: None,
+            duration_s: 12.0,
+            skip_s: 10.0,
+            keep_trace: false,
+            calibrated: false,
+            threads: 2,
+            gps_rate_hz: None,
+            imu_rate_hz: None,
+        };
+        let names = ["bound", "proposed", "proposed_f32", "fusion_nav"];
+        let registry: Vec<Estimator> = estimators()
+            .into_iter()
+            .filter(|e| names.contains(&e.name))
+            .collect();
+        assert_eq!(registry.len(), names.len());
+        let progress = Mutex::new(Progress {
+            done: 0,
+            total: 2 * registry.len(),
+            started: Instant::now(),
+        });
+        let seeds = [1, 2];
+        let result = run_scenario(Scenario::Low, &seeds, &options, &registry, &progress);
+        let json = to_json(&[result], &seeds, options.duration_s, options.skip_s);
+        assert_eq!(json["seeds"], json!([1, 2]));
+        let estimators = &json["scenarios"][0]["estimators"];
+        for name in names {
+            let entry = estimators[name].as_object().expect("an entry per row");
+            for key in ["tilt_deg", "heading_deg", "vel_m_s", "pos_m"] {
+                assert!(
+                    entry[key].as_f64().is_some_and(f64::is_finite),
+                    "{name}.{key}"
+                );
+                let ci = entry[&format!("{key}_ci95")].as_array().expect("a pair");
+                assert!(
+                    ci.len() == 2 && ci.iter().all(Value::is_number),
+                    "{name}.{key}_ci95"
+                );
+            }
+            for (figure, _) in FIGURES {
+                assert!(
+                    entry.contains_key(&format!("{figure}_ci95")),
+                    "{name}.{figure}_ci95"
+                );
+            }
+            assert!(entry.contains_key("nees_mean"), "{name}.nees_mean");
+        }
+        assert!(estimators["proposed_f32"]["nees_mean"].is_number());
+    }
 }

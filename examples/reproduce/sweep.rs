@@ -109,7 +109,7 @@ pub fn run(
         points.push(
             scenarios
                 .iter()
-                .map(|&s| run_scenario(s, seeds, &o, &progress))
+                .map(|&s| run_scenario(s, seeds, &o, &registry, &progress))
                 .collect(),
         );
     }

@@ -41,6 +41,18 @@ pub struct Aekf17Config<T: Scalar> {
     pub accel_smoothing_s: T,
 }
 
+impl<T: Scalar> Aekf17Config<T> {
+    /// Every field zero (never valid): the configuration of a blank filter.
+    pub(crate) const ZEROED: Self = Self {
+        nav: Ekf16Config::ZEROED,
+        initial_delay_s: T::ZERO,
+        initial_delay_std_s: T::ZERO,
+        delay_random_walk: T::ZERO,
+        max_delay_s: T::ZERO,
+        accel_smoothing_s: T::ZERO,
+    };
+}
+
 impl<T: Scalar> Default for Aekf17Config<T> {
     fn default() -> Self {
         Self {

@@ -166,13 +166,44 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// fix as [`Ekf16`](crate::Ekf16) does, with `tau` at its configured
     /// initial value. Fails when the configuration does not validate.
     pub fn new(config: Aekf17Config<T>) -> Result<Self, Error> {
-        config.validate()?;
-        Ok(Self {
-            core: NavCore::new(config.nav, &[delay_extra_state(&config)])?,
-            config,
-            delay_clamps: 0,
-            smoothed: None,
-        })
+        let mut aekf = Self::BLANK;
+        aekf.configure(config)?;
+        Ok(aekf)
+    }
+
+    /// A filter not configured yet: a `const` value the compiler builds (in
+    /// a `static`, no stack at all). It refuses every sample
+    /// ([`Error::NotConfigured`]) until [`configure`](Self::configure)
+    /// succeeds.
+    pub const BLANK: Self = Self {
+        core: NavCore::BLANK,
+        config: Aekf17Config::ZEROED,
+        delay_clamps: 0,
+        smoothed: None,
+    };
+
+    /// Validates `config` and (re)starts the filter with it in place, as
+    /// [`new`](Self::new) would build it (counters included). On error the
+    /// filter is left not configured: it refuses every sample.
+    pub fn configure(&mut self, config: Aekf17Config<T>) -> Result<(), Error> {
+        let configured = config.validate().and_then(|()| {
+            self.core
+                .configure(config.nav, &[delay_extra_state(&config)])
+        });
+        if configured.is_err() {
+            self.core.unconfigure();
+        }
+        configured?;
+        self.config = config;
+        self.delay_clamps = 0;
+        self.smoothed = None;
+        Ok(())
+    }
+
+    /// True once a [`configure`](Self::configure) (or [`new`](Self::new))
+    /// succeeded.
+    pub fn is_configured(&self) -> bool {
+        self.core.is_configured()
     }
 
     /// A filter initialized at time `t_us` (microseconds, IMU clock) with a
@@ -209,7 +240,8 @@ impl<T: Scalar> AugmentedEkf17<T> {
         })
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a filter not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &Aekf17Config<T> {
         &self.config
     }

@@ -50,7 +50,7 @@ use nalgebra::Vector3;
 
 use super::ring::Ring;
 use crate::error::Error;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, zeros_const};
 
 /// The correlation peak of one NED axis.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -106,12 +106,12 @@ struct WindowSums<T: Scalar> {
 }
 
 impl<T: Scalar> WindowSums<T> {
-    fn new() -> Self {
+    const fn new() -> Self {
         Self {
-            sum: Vector3::zeros(),
-            squares: Vector3::zeros(),
-            shadow_sum: Vector3::zeros(),
-            shadow_squares: Vector3::zeros(),
+            sum: zeros_const(),
+            squares: zeros_const(),
+            shadow_sum: zeros_const(),
+            shadow_squares: zeros_const(),
             shadow_count: 0,
         }
     }
@@ -173,6 +173,40 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// Errors: `buffer_len` not in `2..=BUF`, `lags` not in `3..=LAGS`, or
     /// `buffer_len + shift_min + lags > HIST`.
     pub fn new(buffer_len: usize, shift_min: usize, lags: usize) -> Result<Self, Error> {
+        let mut correlator = Self::BLANK;
+        correlator.configure(buffer_len, shift_min, lags)?;
+        Ok(correlator)
+    }
+
+    /// A correlator of no buffer, to be [`configure`](Self::configure)d
+    /// (the delay loop's blank value: built by the compiler, no stack).
+    /// Never pushed to before then.
+    pub(crate) const BLANK: Self = Self {
+        buffer_len: 0,
+        shift_min: 0,
+        lags: 0,
+        x: Ring::new(zeros_const()),
+        x_newest: None,
+        y: Ring::new(zeros_const()),
+        y_newest: None,
+        y_sums: WindowSums::new(),
+        cross: [[T::ZERO; LAGS]; 3],
+        cross_shadow: [[T::ZERO; LAGS]; 3],
+        cross_shadow_count: 0,
+        pairs: 0,
+        pending: Ring::new((0, zeros_const())),
+        multiply_adds: 0,
+    };
+
+    /// [`new`](Self::new) in place: checks the sizes (unchanged on error),
+    /// then sets them and empties every buffer through `&mut` (no copy of
+    /// the buffers), the work counter included.
+    pub(crate) fn configure(
+        &mut self,
+        buffer_len: usize,
+        shift_min: usize,
+        lags: usize,
+    ) -> Result<(), Error> {
         if !(2..=BUF).contains(&buffer_len) {
             return Err(Error::InvalidConfig {
                 field: "correlation.buffer",
@@ -194,22 +228,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 bound: crate::error::Bound::Rule("HIST must exceed buffer + largest shift"),
             });
         }
-        Ok(Self {
-            buffer_len,
-            shift_min,
-            lags,
-            x: Ring::new(Vector3::zeros()),
-            x_newest: None,
-            y: Ring::new(Vector3::zeros()),
-            y_newest: None,
-            y_sums: WindowSums::new(),
-            cross: [[T::zero(); LAGS]; 3],
-            cross_shadow: [[T::zero(); LAGS]; 3],
-            cross_shadow_count: 0,
-            pairs: 0,
-            pending: Ring::new((0, Vector3::zeros())),
-            multiply_adds: 0,
-        })
+        self.buffer_len = buffer_len;
+        self.shift_min = shift_min;
+        self.lags = lags;
+        self.multiply_adds = 0;
+        self.reset();
+        Ok(())
     }
 
     /// Forgets both streams.
@@ -223,8 +247,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.y.clear();
         self.y_newest = None;
         self.y_sums = WindowSums::new();
-        self.cross = [[T::zero(); LAGS]; 3];
-        self.cross_shadow = [[T::zero(); LAGS]; 3];
+        for sums in self.cross.iter_mut().chain(self.cross_shadow.iter_mut()) {
+            sums.fill(T::zero());
+        }
         self.cross_shadow_count = 0;
         self.pairs = 0;
         self.pending.clear();

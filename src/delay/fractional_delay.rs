@@ -56,7 +56,7 @@ use nalgebra::SVector;
 
 use super::ring::Ring;
 use crate::error::Error;
-use crate::scalar::{Scalar, all_finite};
+use crate::scalar::{Scalar, all_finite, zeros_const};
 
 /// Ring buffer of `CH`-channel samples, read at any fractional delay with
 /// Lagrange interpolation of order `ORDER` through `N` stored samples.
@@ -96,8 +96,9 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
     /// Number of samples one read combines (`ORDER + 1`).
     pub const TAPS: usize = ORDER + 1;
 
-    /// An empty line.
-    pub fn new() -> Self {
+    /// An empty line (a `const fn`: usable in a `static` or a `const`
+    /// blank value, with no stack temporary).
+    pub const fn new() -> Self {
         const {
             assert!(ORDER >= 1, "Lagrange order must be at least 1");
             assert!(
@@ -106,7 +107,7 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
             );
         };
         Self {
-            ring: Ring::new(SVector::zeros()),
+            ring: Ring::new(zeros_const()),
         }
     }
 

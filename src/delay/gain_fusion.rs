@@ -63,6 +63,15 @@ impl<T: Scalar> Default for GainFusionConfig<T> {
 }
 
 impl<T: Scalar> GainFusionConfig<T> {
+    /// Every field zero: the placeholder of a blank value (never valid).
+    pub(crate) const ZEROED: Self = Self {
+        gamma: T::ZERO,
+        delay_min_s: T::ZERO,
+        delay_max_s: T::ZERO,
+        initial_delay_s: T::ZERO,
+        initial_std_s: T::ZERO,
+    };
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |field, reason| {
@@ -114,6 +123,14 @@ pub struct GainFusion<T: Scalar> {
 }
 
 impl<T: Scalar> GainFusion<T> {
+    /// A fusion of a zeroed configuration: the blank value of the delay
+    /// loop, replaced by [`new`](Self::new) before use.
+    pub(crate) const BLANK: Self = Self {
+        config: GainFusionConfig::ZEROED,
+        delay_s: T::ZERO,
+        variance_s2: T::ZERO,
+    };
+
     /// A validated fusion at the configured initial delay.
     pub fn new(config: GainFusionConfig<T>) -> Result<Self, Error> {
         config.validate()?;

@@ -28,7 +28,7 @@ use nalgebra::Vector3;
 
 use super::ring::Ring;
 use crate::error::Error;
-use crate::scalar::{Scalar, all_finite};
+use crate::scalar::{Scalar, all_finite, zeros_const};
 use crate::sensors::check_time;
 
 /// Longest GPS differencing span `n` supported.
@@ -42,7 +42,7 @@ struct GridResampler<T: Scalar> {
 }
 
 impl<T: Scalar> GridResampler<T> {
-    fn new() -> Self {
+    const fn new() -> Self {
         Self {
             previous: None,
             next_index: 0,
@@ -86,6 +86,12 @@ struct Smoother<T: Scalar> {
 }
 
 impl<T: Scalar> Smoother<T> {
+    /// A smoother of gain 0, set by `new` before use (blank values).
+    const BLANK: Self = Self {
+        alpha: T::ZERO,
+        stages: None,
+    };
+
     fn new(cutoff_hz: T, period_s: T) -> Self {
         Self {
             alpha: T::one() - (-T::two_pi() * cutoff_hz * period_s).exp(),
@@ -111,6 +117,12 @@ struct SmoothedGrid<T: Scalar> {
 }
 
 impl<T: Scalar> SmoothedGrid<T> {
+    const BLANK: Self = Self {
+        period_us: 0,
+        resampler: GridResampler::new(),
+        smoother: Smoother::BLANK,
+    };
+
     fn new(period_us: u64, cutoff_hz: T) -> Self {
         Self {
             period_us,
@@ -142,6 +154,13 @@ pub(crate) struct ImuToGrid<T: Scalar> {
 }
 
 impl<T: Scalar> ImuToGrid<T> {
+    /// Period 0, replaced by `new` before use (the delay loop's blank value).
+    pub(crate) const BLANK: Self = Self {
+        period_us: 0,
+        bin: None,
+        grid: SmoothedGrid::BLANK,
+    };
+
     pub(crate) fn new(period_us: u64, cutoff_hz: T) -> Self {
         Self {
             period_us,
@@ -237,6 +256,13 @@ pub(crate) struct GpsToGrid<T: Scalar> {
 }
 
 impl<T: Scalar> GpsToGrid<T> {
+    /// Replaced by `new` before use (the delay loop's blank value).
+    pub(crate) const BLANK: Self = Self {
+        span: 0,
+        fixes: Ring::new((0, zeros_const())),
+        grid: SmoothedGrid::BLANK,
+    };
+
     pub(crate) fn new(period_us: u64, span: usize, cutoff_hz: T) -> Self {
         Self {
             span: span.clamp(1, MAX_GPS_DIFF_SPAN),

@@ -38,7 +38,7 @@ use nalgebra::Vector3;
 use super::correlation::{AxisPeak, parabolic_offset, pearson};
 use super::grid::MAX_GPS_DIFF_SPAN;
 use super::ring::Ring;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, zeros_const};
 
 /// Fix intervals kept (64: a 10 s buffer at up to 6.4 Hz; a faster GPS
 /// correlates over its last 64 intervals).
@@ -67,6 +67,23 @@ pub(crate) struct MatchedCorrelator<T: Scalar> {
 }
 
 impl<T: Scalar> MatchedCorrelator<T> {
+    /// Sized by [`configure`](Self::configure) before use (the delay
+    /// loop's blank value).
+    pub(crate) const BLANK: Self = Self {
+        period_us: 0,
+        shift_lo: 0,
+        lags: 0,
+        buffer_us: 0,
+        span: 0,
+        fixes: Ring::new((0, zeros_const())),
+        intervals: Ring::new(Interval {
+            start_us: 0,
+            end_us: 0,
+            accel: zeros_const(),
+        }),
+    };
+
+    #[cfg(test)]
     pub(crate) fn new(
         period_us: u64,
         shift_lo: i64,
@@ -74,19 +91,26 @@ impl<T: Scalar> MatchedCorrelator<T> {
         buffer_us: u64,
         span: usize,
     ) -> Self {
-        Self {
-            period_us,
-            shift_lo,
-            lags,
-            buffer_us,
-            span: span.clamp(1, MAX_GPS_DIFF_SPAN),
-            fixes: Ring::new((0, Vector3::zeros())),
-            intervals: Ring::new(Interval {
-                start_us: 0,
-                end_us: 0,
-                accel: Vector3::zeros(),
-            }),
-        }
+        let mut m = Self::BLANK;
+        m.configure(period_us, shift_lo, lags, buffer_us, span);
+        m
+    }
+
+    /// Sets the sizes and forgets the stream, in place.
+    pub(crate) fn configure(
+        &mut self,
+        period_us: u64,
+        shift_lo: i64,
+        lags: usize,
+        buffer_us: u64,
+        span: usize,
+    ) {
+        self.period_us = period_us;
+        self.shift_lo = shift_lo;
+        self.lags = lags;
+        self.buffer_us = buffer_us;
+        self.span = span.clamp(1, MAX_GPS_DIFF_SPAN);
+        self.reset();
     }
 
     /// Forgets the GPS stream (after a gap).

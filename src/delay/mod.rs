@@ -281,6 +281,32 @@ struct GridSizes {
 }
 
 impl<T: Scalar> DelayLoopConfig<T> {
+    /// Every field zero (never valid): the configuration of
+    /// [`DelayLoop::BLANK`].
+    pub(crate) const ZEROED: Self = Self {
+        correlation_rate_hz: T::ZERO,
+        buffer_s: T::ZERO,
+        gps_diff_span: 0,
+        smoothing_cutoff_hz: T::ZERO,
+        matched_fix_intervals: false,
+        min_accel_variance_m2_s4: T::ZERO,
+        min_peak: T::ZERO,
+        fixes_per_update: 0,
+        max_imu_gap_s: T::ZERO,
+        max_gps_gap_s: T::ZERO,
+        process_noise_ms2_per_s: T::ZERO,
+        measurement_noise_ms2: [T::ZERO; AXES],
+        reference_accel_variance_m2_s4: T::ZERO,
+        acquisition_motion_exponent: T::ZERO,
+        reacquire_sigma: T::ZERO,
+        reacquire_after_s: T::ZERO,
+        lock_std_s: T::ZERO,
+        acquire_sigma: T::ZERO,
+        lock_after_s: T::ZERO,
+        out_of_range_after_s: T::ZERO,
+        fusion: GainFusionConfig::ZEROED,
+    };
+
     /// This configuration adapted to a GPS delivering `gps_rate_hz` fixes per
     /// second (1 to 20 Hz), within the capacities of [`DefaultDelayLoop`]:
     ///
@@ -605,6 +631,9 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     stable_since_us: Option<u64>,
     edge: Option<EdgeRun<T>>,
     status: DelayStatus<T>,
+    /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
+    /// [`configure`](DelayLoop::configure): every sample is refused.
+    configured: bool,
 }
 
 /// A loop sized for the default configuration: 50 Hz grid, 5 s buffer
@@ -617,9 +646,61 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     DelayLoop<T, BUF, LAGS, HIST>
 {
     /// A loop for a validated configuration whose sizes fit the capacities.
+    ///
+    /// Built on the stack; in a `static`, or on a small stack, start from
+    /// [`BLANK`](Self::BLANK) and [`configure`](Self::configure) it in place.
     pub fn new(config: DelayLoopConfig<T>) -> Result<Self, Error> {
+        let mut delay_loop = Self::BLANK;
+        delay_loop.configure(config)?;
+        Ok(delay_loop)
+    }
+
+    /// A loop not configured yet: a `const` value the compiler builds (in a
+    /// `static`, no stack at all), every buffer empty. It refuses every
+    /// sample ([`Error::NotConfigured`]) until [`configure`](Self::configure)
+    /// succeeds.
+    pub const BLANK: Self = Self {
+        config: DelayLoopConfig::ZEROED,
+        period_s: T::ZERO,
+        imu_grid: ImuToGrid::BLANK,
+        gps_grid: GpsToGrid::BLANK,
+        correlator: SlidingCorrelator::BLANK,
+        matched: MatchedCorrelator::BLANK,
+        fusion: GainFusion::BLANK,
+        last_imu_us: None,
+        last_gps_us: None,
+        fixes_since_update: 0,
+        last_update_us: None,
+        disagreeing_since_us: None,
+        restarts: 0,
+        offset_samples: 0,
+        shift_min: 0,
+        innovation_ratio: T::ZERO,
+        innovations_matched: false,
+        locked: false,
+        following: false,
+        stable_since_us: None,
+        edge: None,
+        status: DelayStatus::WaitingForData,
+        configured: false,
+    };
+
+    /// True once a [`configure`](Self::configure) (or [`new`](Self::new))
+    /// succeeded.
+    pub fn is_configured(&self) -> bool {
+        self.configured
+    }
+
+    /// Validates `config` and (re)starts the loop with it in place: the
+    /// buffers are emptied through `&mut`, not rebuilt, so this needs a
+    /// small stack whatever the capacities. The state afterwards is that of
+    /// [`new`](Self::new). On error the loop is left not configured
+    /// (refusing every sample), not half configured.
+    pub fn configure(&mut self, config: DelayLoopConfig<T>) -> Result<(), Error> {
+        self.configured = false;
         let sizes = config.sizes()?;
-        let correlator = SlidingCorrelator::new(sizes.buffer_len, sizes.shift_min, sizes.lags)?;
+        self.correlator
+            .configure(sizes.buffer_len, sizes.shift_min, sizes.lags)?;
         if sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead > HIST {
             return Err(Error::InvalidConfig {
                 field: "HIST",
@@ -630,44 +711,44 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 ),
             });
         }
-        Ok(Self {
-            config,
-            period_s: T::lit(sizes.period_us as f64 * 1e-6),
-            imu_grid: if config.matched_fix_intervals {
-                ImuToGrid::unsmoothed(sizes.period_us)
-            } else {
-                ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz)
-            },
-            gps_grid: GpsToGrid::new(
-                sizes.period_us,
-                config.gps_diff_span,
-                config.smoothing_cutoff_hz,
-            ),
-            correlator,
-            matched: MatchedCorrelator::new(
-                sizes.period_us,
-                sizes.shift_lo,
-                sizes.lags,
-                (config.buffer_s.as_f64() * 1e6) as u64,
-                config.gps_diff_span,
-            ),
-            fusion: GainFusion::new(config.fusion)?,
-            last_imu_us: None,
-            last_gps_us: None,
-            fixes_since_update: 0,
-            last_update_us: None,
-            disagreeing_since_us: None,
-            restarts: 0,
-            offset_samples: sizes.offset as u64,
-            shift_min: sizes.shift_min,
-            innovation_ratio: T::one(),
-            innovations_matched: false,
-            locked: config.fusion.initial_std_s <= config.lock_std_s,
-            following: false,
-            stable_since_us: None,
-            edge: None,
-            status: DelayStatus::WaitingForData,
-        })
+        let fusion = GainFusion::new(config.fusion)?;
+        self.config = config;
+        self.period_s = T::lit(sizes.period_us as f64 * 1e-6);
+        self.imu_grid = if config.matched_fix_intervals {
+            ImuToGrid::unsmoothed(sizes.period_us)
+        } else {
+            ImuToGrid::new(sizes.period_us, config.smoothing_cutoff_hz)
+        };
+        self.gps_grid = GpsToGrid::new(
+            sizes.period_us,
+            config.gps_diff_span,
+            config.smoothing_cutoff_hz,
+        );
+        self.matched.configure(
+            sizes.period_us,
+            sizes.shift_lo,
+            sizes.lags,
+            (config.buffer_s.as_f64() * 1e6) as u64,
+            config.gps_diff_span,
+        );
+        self.fusion = fusion;
+        self.last_imu_us = None;
+        self.last_gps_us = None;
+        self.fixes_since_update = 0;
+        self.last_update_us = None;
+        self.disagreeing_since_us = None;
+        self.restarts = 0;
+        self.offset_samples = sizes.offset as u64;
+        self.shift_min = sizes.shift_min;
+        self.innovation_ratio = T::one();
+        self.innovations_matched = false;
+        self.locked = config.fusion.initial_std_s <= config.lock_std_s;
+        self.following = false;
+        self.stable_since_us = None;
+        self.edge = None;
+        self.status = DelayStatus::WaitingForData;
+        self.configured = true;
+        Ok(())
     }
 
     /// What the loop can say about the delay now ([`DelayStatus`]).
@@ -675,7 +756,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.status
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a loop not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &DelayLoopConfig<T> {
         &self.config
     }
@@ -731,6 +813,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// most [`DelayLoopConfig::lock_std_s`], else acquiring. State unchanged
     /// on error.
     pub fn set_delay(&mut self, delay_s: T, std_s: T) -> Result<(), Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         self.fusion.reset(delay_s, std_s)?;
         self.locked = std_s <= self.config.lock_std_s;
         self.following = false;
@@ -743,6 +828,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// removed) at IMU time `t_us`. Refused, state unchanged: non-finite
     /// values or beyond [`MAX_INPUT_MAGNITUDE`], time not increasing.
     pub fn push_imu(&mut self, t_us: u64, accel_ned_m_s2: Vector3<T>) -> Result<(), Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let gap = admit_sample(
             "imu",
             "delay.accel_ned",
@@ -774,6 +862,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         t_us: u64,
         velocity_ned_m_s: Vector3<T>,
     ) -> Result<Option<DelayUpdate<T>>, Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let gap = admit_sample(
             "gps",
             "delay.gps_velocity",

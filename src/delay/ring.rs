@@ -13,8 +13,9 @@ pub(crate) struct Ring<E: Copy, const N: usize> {
 }
 
 impl<E: Copy, const N: usize> Ring<E, N> {
-    /// An empty ring; `fill` only initializes the storage.
-    pub(crate) fn new(fill: E) -> Self {
+    /// An empty ring; `fill` only initializes the storage (a `const fn`:
+    /// a ring in a `const` blank value costs no stack).
+    pub(crate) const fn new(fill: E) -> Self {
         const { assert!(N > 0, "a ring needs room for at least one value") };
         Self {
             data: [fill; N],

@@ -20,7 +20,7 @@
 
 use crate::error::{Bound, Error, check};
 use crate::kalman::GATE_5_SIGMA_3DOF;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::Geodetic;
 use nalgebra::Vector3;
 
@@ -191,6 +191,51 @@ pub struct Ekf16Config<T: Scalar> {
     /// Initial gyro-bias standard deviation per axis, rad/s: the uncertainty
     /// of [`initial_gyro_bias_rad_s`](Self::initial_gyro_bias_rad_s).
     pub initial_gyro_bias_std_rad_s: T,
+}
+
+impl<T: Scalar> Ekf16Config<T> {
+    /// Every field zero (never valid): the configuration of a blank filter.
+    pub(crate) const ZEROED: Self = Self {
+        gravity_m_s2: T::ZERO,
+        gyro_noise_density: T::ZERO,
+        accel_noise_density: T::ZERO,
+        gyro_bias_random_walk: T::ZERO,
+        accel_bias_random_walk: T::ZERO,
+        gps_horizontal_std_m: T::ZERO,
+        gps_vertical_std_m: T::ZERO,
+        gps_velocity_std_m_s: T::ZERO,
+        use_receiver_accuracy: false,
+        lever_arm_m: zeros_const(),
+        origin: None,
+        mag_inclination_rad: T::ZERO,
+        mag_declination_rad: T::ZERO,
+        mag_noise_variance: T::ZERO,
+        mag_corrects_tilt: false,
+        mag_tilt_alignment_std_rad: T::ZERO,
+        mag_norm_tolerance: T::ZERO,
+        mag_inclination_tolerance_rad: T::ZERO,
+        mag_field_learning_rate: T::ZERO,
+        gps_position_gate: T::ZERO,
+        gps_velocity_gate: T::ZERO,
+        mag_gate: T::ZERO,
+        gps_reset_timeout_us: 0,
+        gps_nis_window: 0,
+        gps_nis_bound: T::ZERO,
+        max_imu_step_us: 0,
+        max_gyro_rad_s: T::ZERO,
+        max_accel_m_s2: T::ZERO,
+        align_window: 0,
+        align_min_samples: 0,
+        initial_tilt_std_rad: T::ZERO,
+        initial_yaw_std_rad: T::ZERO,
+        initial_yaw_std_no_mag_rad: T::ZERO,
+        initial_position_std_m: T::ZERO,
+        initial_velocity_std_m_s: T::ZERO,
+        initial_accel_bias_m_s2: zeros_const(),
+        initial_accel_bias_std_m_s2: T::ZERO,
+        initial_gyro_bias_rad_s: zeros_const(),
+        initial_gyro_bias_std_rad_s: T::ZERO,
+    };
 }
 
 impl<T: Scalar> Default for Ekf16Config<T> {

@@ -38,7 +38,7 @@
 //!
 //! [`Ekf16::push_imu_deltas`]: super::Ekf16::push_imu_deltas
 
-use crate::scalar::{Scalar, us_to_s};
+use crate::scalar::{Scalar, us_to_s, zeros_const};
 use crate::sensors::Imu;
 use nalgebra::Vector3;
 
@@ -78,14 +78,12 @@ struct Sums<T: Scalar> {
 }
 
 impl<T: Scalar> Sums<T> {
-    fn zero() -> Self {
-        Self {
-            alpha: Vector3::zeros(),
-            upsilon: Vector3::zeros(),
-            coning: Vector3::zeros(),
-            sculling: Vector3::zeros(),
-        }
-    }
+    const ZERO: Self = Self {
+        alpha: zeros_const(),
+        upsilon: zeros_const(),
+        coning: zeros_const(),
+        sculling: zeros_const(),
+    };
 }
 
 /// Accumulates IMU samples into [`ImuDeltas`] (module docs). No storage
@@ -106,11 +104,11 @@ impl<T: Scalar> Default for DeltaAccumulator<T> {
 
 impl<T: Scalar> DeltaAccumulator<T> {
     /// An empty accumulator with coning and sculling corrections.
-    pub fn new() -> Self {
+    pub const fn new() -> Self {
         Self {
             start_us: None,
             last: None,
-            sums: Sums::zero(),
+            sums: Sums::ZERO,
             corrected: true,
         }
     }
@@ -129,7 +127,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
     pub fn restart(&mut self, s: &Imu<T>) {
         self.start_us = Some(s.t_us);
         self.last = Some(*s);
-        self.sums = Sums::zero();
+        self.sums = Sums::ZERO;
     }
 
     /// Forgets everything, including the start sample.

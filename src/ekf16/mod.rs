@@ -150,6 +150,27 @@ pub struct RefusalCounters {
 }
 
 impl RefusalCounters {
+    /// Nothing counted (the `const` of [`Default::default`]).
+    pub const ZERO: Self = Self {
+        imu_non_finite: 0,
+        imu_out_of_range: 0,
+        imu_time: 0,
+        imu_step_too_long: 0,
+        gps_invalid: 0,
+        gps_time: 0,
+        gps_position_rejected: 0,
+        gps_velocity_rejected: 0,
+        mag_invalid: 0,
+        mag_time: 0,
+        mag_rejected: 0,
+        mag_disturbed: 0,
+        gps_mixed_frames: 0,
+        not_positive_definite: 0,
+        gps_position_resets: 0,
+        gps_velocity_resets: 0,
+        gps_divergence_resets: 0,
+    };
+
     /// Field-wise sum (saturating): the counters of a filter that replaced
     /// another added to those of the one it replaced.
     pub fn merged(self, other: Self) -> Self {
@@ -252,6 +273,55 @@ impl<T: Scalar> Ekf16<T> {
         })
     }
 
+    /// A filter not configured yet: a `const` value the compiler builds (in
+    /// a `static`, no stack at all). It refuses every sample
+    /// ([`Error::NotConfigured`]) until [`configure`](Self::configure)
+    /// succeeds.
+    ///
+    /// ```
+    /// use delaynav::{Ekf16, Ekf16Config, Error, Imu, Navigator};
+    /// use nalgebra::Vector3;
+    ///
+    /// static BLANK: Ekf16<f32> = Ekf16::BLANK;
+    /// let mut ekf = BLANK.clone();
+    /// let imu = Imu { t_us: 0, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.8) };
+    /// assert_eq!(ekf.push_imu(&imu), Err(Error::NotConfigured));
+    /// ekf.configure(Ekf16Config::default())?;
+    /// assert!(ekf.push_imu(&imu).is_ok());
+    /// # Ok::<(), Error>(())
+    /// ```
+    pub const BLANK: Self = Self {
+        core: NavCore::BLANK,
+    };
+
+    /// Validates `config` and (re)starts the filter with it in place, as
+    /// [`new`](Self::new) would build it (counters included), without a
+    /// copy of the filter on the stack. On error the filter is left not
+    /// configured: it refuses every sample.
+    pub fn configure(&mut self, config: Ekf16Config<T>) -> Result<(), Error> {
+        self.core.configure(config, &[])
+    }
+
+    /// True once a [`configure`](Self::configure) (or [`new`](Self::new))
+    /// succeeded.
+    pub fn is_configured(&self) -> bool {
+        self.core.is_configured()
+    }
+
+    /// [`from_state_with_covariance`](Self::from_state_with_covariance) in
+    /// place (the navigator's alignment, on the push path). The
+    /// configuration and the state are checked before anything changes.
+    pub(crate) fn configure_from_state(
+        &mut self,
+        config: Ekf16Config<T>,
+        t_us: u64,
+        state: &NavState<T>,
+        covariance: &StateCovariance<T>,
+    ) -> Result<(), Error> {
+        self.core
+            .configure_from_state(config, &[], t_us, &state.to_vector(), covariance)
+    }
+
     /// A filter initialized at time `t_us` (microseconds, IMU clock) with a
     /// known state and a diagonal covariance (in state order, see
     /// [`state`]). For an attitude uncertainty given as roll/pitch/yaw
@@ -286,7 +356,8 @@ impl<T: Scalar> Ekf16<T> {
         })
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a filter not configured: see
+    /// [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &Ekf16Config<T> {
         self.core.config()
     }

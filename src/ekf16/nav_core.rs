@@ -73,7 +73,7 @@ use crate::geo::{
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading, tilt_compensated_heading_sc,
 };
 use crate::kalman;
-use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s};
+use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s, zeros_const};
 use crate::sensors::{
     GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
     checked_mag,
@@ -105,16 +105,12 @@ struct BoundedMean<T: Scalar, const D: usize = 3> {
     count: u32,
 }
 
-impl<T: Scalar, const D: usize> Default for BoundedMean<T, D> {
-    fn default() -> Self {
-        Self {
-            mean: SVector::zeros(),
-            count: 0,
-        }
-    }
-}
-
 impl<T: Scalar, const D: usize> BoundedMean<T, D> {
+    const EMPTY: Self = Self {
+        mean: zeros_const(),
+        count: 0,
+    };
+
     fn push(&mut self, v: &SVector<T, D>, window: u32) {
         if self.count < window {
             self.count += 1;
@@ -317,17 +313,77 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// it, then followed slowly by the accepted samples.
     mag_field: Option<(T, T)>,
     refusals: RefusalCounters,
+    /// False in [`BLANK`](Self::BLANK) and after a failed
+    /// [`configure`](Self::configure): every sample is refused.
+    configured: bool,
 }
 
 impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// An uninitialized core; `extras` describes states `16..N` (exactly `N - 16` of them).
     pub(crate) fn new(config: Ekf16Config<T>, extras: &[ExtraState<T>]) -> Result<Self, Error> {
+        let mut core = Self::BLANK;
+        core.configure(config, extras)?;
+        Ok(core)
+    }
+
+    /// A core not configured: zero configuration, state and covariance; it
+    /// refuses every sample ([`Error::NotConfigured`]). A `const` value:
+    /// in a `static` it costs no stack.
+    pub(crate) const BLANK: Self = {
         const {
             assert!(
                 N >= NAV_STATES,
                 "a navigation core has at least the 16 navigation states"
             )
         };
+        Self {
+            config: Ekf16Config::ZEROED,
+            field_ned: zeros_const(),
+            x: zeros_const(),
+            p: zeros_const(),
+            extra_initial: zeros_const(),
+            extra_variance: zeros_const(),
+            extra_intensity: zeros_const(),
+            initialized: false,
+            imu_clock_us: None,
+            last_imu: None,
+            gps_clock_us: None,
+            mag_clock_us: None,
+            accel_mean: BoundedMean::EMPTY,
+            mag_mean: BoundedMean::EMPTY,
+            frame: None,
+            last_gps: None,
+            last_mag: None,
+            gps_accepted_us: [None; 2],
+            gps_nis: [(T::ZERO, 0); 2],
+            last_gps_reset: None,
+            geodetic_fixes: None,
+            mag_norm_mean: BoundedMean::EMPTY,
+            mag_field: None,
+            refusals: RefusalCounters::ZERO,
+            configured: false,
+        }
+    };
+
+    /// True once a [`configure`](Self::configure) succeeded.
+    pub(crate) fn is_configured(&self) -> bool {
+        self.configured
+    }
+
+    /// Refuses every sample from now on, until a [`configure`](Self::configure).
+    pub(crate) fn unconfigure(&mut self) {
+        self.configured = false;
+    }
+
+    /// [`new`](Self::new) in place: validates `config` and `extras`, then
+    /// resets every member through `&mut` (the counters too). On error the
+    /// core is left not configured, refusing every sample.
+    pub(crate) fn configure(
+        &mut self,
+        config: Ekf16Config<T>,
+        extras: &[ExtraState<T>],
+    ) -> Result<(), Error> {
+        self.configured = false;
         config.validate()?;
         if extras.len() != N - NAV_STATES {
             return Err(Error::InvalidConfig {
@@ -338,64 +394,66 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 ),
             });
         }
-        let mut core = Self {
-            config,
-            field_ned: magnetic_field_ned(config.mag_inclination_rad, config.mag_declination_rad),
-            x: SVector::zeros(),
-            p: SMatrix::zeros(),
-            extra_initial: SVector::zeros(),
-            extra_variance: SVector::zeros(),
-            extra_intensity: SVector::zeros(),
-            initialized: false,
-            imu_clock_us: None,
-            last_imu: None,
-            gps_clock_us: None,
-            mag_clock_us: None,
-            accel_mean: BoundedMean::default(),
-            mag_mean: BoundedMean::default(),
-            frame: config.origin.map(LocalFrame::new),
-            last_gps: None,
-            last_mag: None,
-            gps_accepted_us: [None; 2],
-            gps_nis: [(T::zero(), 0); 2],
-            last_gps_reset: None,
-            geodetic_fixes: None,
-            mag_norm_mean: BoundedMean::default(),
-            mag_field: None,
-            refusals: RefusalCounters::default(),
-        };
-        for (i, e) in extras.iter().enumerate() {
-            let ok = e.initial.is_finite()
+        let valid = |e: &ExtraState<T>| {
+            e.initial.is_finite()
                 && e.initial_variance.is_finite()
                 && e.random_walk_intensity.is_finite()
                 && e.initial_variance >= T::zero()
-                && e.random_walk_intensity >= T::zero();
-            if !ok {
-                return Err(Error::InvalidConfig {
-                    field: "extra_states",
-                    value: None,
-                    bound: crate::error::Bound::Rule(
-                        "values must be finite, variances and intensities not negative",
-                    ),
-                });
-            }
-            core.extra_initial[NAV_STATES + i] = e.initial;
-            core.extra_variance[NAV_STATES + i] = e.initial_variance;
-            core.extra_intensity[NAV_STATES + i] = e.random_walk_intensity;
+                && e.random_walk_intensity >= T::zero()
+        };
+        if !extras.iter().all(valid) {
+            return Err(Error::InvalidConfig {
+                field: "extra_states",
+                value: None,
+                bound: crate::error::Bound::Rule(
+                    "values must be finite, variances and intensities not negative",
+                ),
+            });
         }
-        Ok(core)
+        self.config = config;
+        self.field_ned = magnetic_field_ned(config.mag_inclination_rad, config.mag_declination_rad);
+        self.x.fill(T::zero());
+        self.p.fill(T::zero());
+        self.extra_initial.fill(T::zero());
+        self.extra_variance.fill(T::zero());
+        self.extra_intensity.fill(T::zero());
+        for (i, e) in extras.iter().enumerate() {
+            self.extra_initial[NAV_STATES + i] = e.initial;
+            self.extra_variance[NAV_STATES + i] = e.initial_variance;
+            self.extra_intensity[NAV_STATES + i] = e.random_walk_intensity;
+        }
+        self.initialized = false;
+        self.imu_clock_us = None;
+        self.last_imu = None;
+        self.gps_clock_us = None;
+        self.mag_clock_us = None;
+        self.accel_mean = BoundedMean::EMPTY;
+        self.mag_mean = BoundedMean::EMPTY;
+        self.frame = config.origin.map(LocalFrame::new);
+        self.last_gps = None;
+        self.last_mag = None;
+        self.gps_accepted_us = [None; 2];
+        self.gps_nis = [(T::zero(), 0); 2];
+        self.last_gps_reset = None;
+        self.geodetic_fixes = None;
+        self.mag_norm_mean = BoundedMean::EMPTY;
+        self.mag_field = None;
+        self.refusals = RefusalCounters::default();
+        self.configured = true;
+        Ok(())
     }
 
-    /// An initialized core at time `t_us` with state `x` and covariance `p`
-    /// (symmetrized; the quaternion is normalized).
-    pub(crate) fn from_state(
+    /// [`from_state`](Self::from_state) in place. The configuration and
+    /// the state are checked before anything changes.
+    pub(crate) fn configure_from_state(
+        &mut self,
         config: Ekf16Config<T>,
         extras: &[ExtraState<T>],
         t_us: u64,
         x: &SVector<T, N>,
         p: &SMatrix<T, N, N>,
-    ) -> Result<Self, Error> {
-        let mut core = Self::new(config, extras)?;
+    ) -> Result<(), Error> {
+        config.validate()?;
         if !all_finite(x) {
             return Err(Error::NonFinite {
                 field: "initial state",
@@ -415,12 +473,27 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 reason: "quaternion must not be zero",
             });
         }
-        core.x = *x;
-        core.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
-        core.p = *p;
-        project_quaternion_covariance(&mut core.p, &core.x);
-        core.imu_clock_us = Some(t_us);
-        core.initialized = true;
+        self.configure(config, extras)?;
+        self.x.copy_from(x);
+        self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
+        self.p.copy_from(p);
+        project_quaternion_covariance(&mut self.p, &self.x);
+        self.imu_clock_us = Some(t_us);
+        self.initialized = true;
+        Ok(())
+    }
+
+    /// An initialized core at time `t_us` with state `x` and covariance `p`
+    /// (symmetrized; the quaternion is normalized).
+    pub(crate) fn from_state(
+        config: Ekf16Config<T>,
+        extras: &[ExtraState<T>],
+        t_us: u64,
+        x: &SVector<T, N>,
+        p: &SMatrix<T, N, N>,
+    ) -> Result<Self, Error> {
+        let mut core = Self::BLANK;
+        core.configure_from_state(config, extras, t_us, x, p)?;
         Ok(core)
     }
 
@@ -429,9 +502,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &self.config
     }
 
-    /// True once initialized.
+    /// True once initialized (and configured: a failed `configure` leaves
+    /// no state to use).
     pub(crate) fn is_initialized(&self) -> bool {
-        self.initialized
+        self.initialized && self.configured
     }
 
     /// Time of the state (the last accepted IMU sample), microseconds.
@@ -548,6 +622,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// mean of the samples at both ends (trapezoidal; equal to a zero-order
     /// hold when the inputs are constant).
     pub(crate) fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let s = checked_imu(imu).inspect_err(|_| bump(&mut self.refusals.imu_non_finite))?;
         let max_w = self.config.max_gyro_rad_s;
         let max_f = self.config.max_accel_m_s2;
@@ -599,6 +676,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// attitude by `Δθ` (bias-corrected). The covariance is predicted with
     /// the mean rate and specific force over the step, `Δθ / T`, `Δv / T`.
     pub(crate) fn push_deltas(&mut self, d: &ImuDeltas<T>) -> Result<(), Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let s = d.last;
         if !(all_finite_fixed(&d.delta_angle_rad) && all_finite_fixed(&d.delta_velocity_m_s)) {
             bump(&mut self.refusals.imu_non_finite);
@@ -731,6 +811,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &mut self,
         gps: &G,
     ) -> Result<GpsStep<T>, Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
         check_time("gps", self.gps_clock_us, fix.t_us)
             .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
@@ -1061,6 +1144,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &mut self,
         mag: &M,
     ) -> Result<MagOutcome<T>, Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         check_time("mag", self.mag_clock_us, m.t_us)
             .inspect_err(|_| bump(&mut self.refusals.mag_time))?;
@@ -1168,7 +1254,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// The current solution, `None` until initialized.
     pub(crate) fn estimate(&self) -> Option<Estimate<T>> {
-        if !self.initialized {
+        if !self.is_initialized() {
             return None;
         }
         let x = &self.x;

@@ -117,6 +117,22 @@ pub struct NavConfig<T: Scalar> {
     pub filter_rate_hz: T,
 }
 
+impl<T: Scalar> NavConfig<T> {
+    /// Every field zero (never valid): the configuration of
+    /// [`DelayCompensatedNav::BLANK`](super::DelayCompensatedNav::BLANK).
+    pub(crate) const ZEROED: Self = Self {
+        ekf: Ekf16Config::ZEROED,
+        delay_loop: DelayLoopConfig::ZEROED,
+        mode: DelayMode::Estimated { initial_s: T::ZERO },
+        imu_rate_hz: T::ZERO,
+        accel_whitening: WhiteningFilter::PassThrough,
+        gyro_whitening: WhiteningFilter::PassThrough,
+        max_horizon_step_ratio: T::ZERO,
+        max_time_jump_us: 0,
+        filter_rate_hz: T::ZERO,
+    };
+}
+
 impl<T: Scalar> Default for NavConfig<T> {
     fn default() -> Self {
         Self {

@@ -72,7 +72,7 @@
 use crate::delay::ring::Ring;
 use crate::ekf16::process;
 use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, POS, QUAT, StateVector, VEL, quaternion_of};
-use crate::scalar::{Scalar, us_to_s};
+use crate::scalar::{Scalar, us_to_s, zero_quaternion_const, zeros_const};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3, Vector4};
 
 /// One stored output state, in the corrected frame of its storage time.
@@ -133,32 +133,52 @@ fn set_attitude<T: Scalar>(x: &mut StateVector<T>, q: &UnitQuaternion<T>) {
 }
 
 impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
-    /// An output predictor storing an entry at the first IMU sample at
-    /// least `stride_us` after the newest entry (`0`: at every sample).
-    pub(crate) fn new(stride_us: u64) -> Self {
+    /// An output predictor not started (a `const fn`: the navigator's
+    /// blank value). The attitudes are zero until [`start`](Self::start)
+    /// (through [`reset`](Self::reset)) sets them; an entry is stored at
+    /// every sample until [`configure`](Self::configure) sets the stride.
+    pub(crate) const fn new() -> Self {
         let empty = Entry {
             t_us: 0,
-            attitude: UnitQuaternion::identity(),
-            velocity: Vector3::zeros(),
-            position: Vector3::zeros(),
+            attitude: zero_quaternion_const(),
+            velocity: zeros_const(),
+            position: zeros_const(),
         };
         Self {
-            x: StateVector::zeros(),
+            x: zeros_const(),
             t_us: 0,
-            last_input: (Vector3::zeros(), Vector3::zeros()),
+            last_input: (zeros_const(), zeros_const()),
             ring: Ring::new(empty),
-            stride_us,
+            stride_us: 0,
             unstored: 0,
             pushed: 0,
             cursor: 0,
-            rotation: UnitQuaternion::identity(),
-            velocity: Vector3::zeros(),
-            position: Vector3::zeros(),
+            rotation: zero_quaternion_const(),
+            velocity: zeros_const(),
+            position: zeros_const(),
             started: false,
             ready: false,
             propagations: 0,
             cursor_moves: 0,
         }
+    }
+
+    /// [`clear`](Self::clear), then one entry stored at the first IMU
+    /// sample at least `stride_us` after the newest (`0`: at every sample).
+    pub(crate) fn configure(&mut self, stride_us: u64) {
+        self.clear();
+        self.stride_us = stride_us;
+    }
+
+    /// Back to the state of [`new`](Self::new) in place, the work counters
+    /// included (a navigator configured again); the stride is kept.
+    pub(crate) fn clear(&mut self) {
+        self.reset();
+        self.x.fill(T::zero());
+        self.t_us = 0;
+        self.last_input = (Vector3::zeros(), Vector3::zeros());
+        self.propagations = 0;
+        self.cursor_moves = 0;
     }
 
     /// Back to the state of [`new`](Self::new) without building a new ring.

@@ -42,6 +42,11 @@ pub const MAX_VELOCITY_STD_M_S: f64 = 2.0;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum AlignmentState {
+    /// A blank navigator ([`DelayCompensatedNav::BLANK`](super::DelayCompensatedNav::BLANK))
+    /// not configured yet, or whose last
+    /// [`configure`](super::DelayCompensatedNav::configure) failed: every
+    /// sample is refused with [`Error::NotConfigured`](crate::Error::NotConfigured).
+    NotConfigured,
     /// Not enough IMU history to reach the delayed horizon yet.
     WaitingForImu,
     /// The horizon EKF waits for a GPS fix (and its levelling window).

@@ -117,6 +117,11 @@
 //! per stride), the delay loop and the magnetometer queue ([`MAG_QUEUE`])
 //! do not grow with `HIST`. Measured (`docs/nav.md`): 53,192 bytes in `f32`
 //! at 1100, 36,664 at 530 (1 kHz, 0.5 s), 29,560 at 256 (200 Hz, 1 s).
+//!
+//! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
+//! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
+//! no stack copy of the navigator at any time (`docs/nav.md`,
+//! "Construction in place").
 
 pub mod config;
 mod forward;
@@ -143,7 +148,7 @@ use crate::ekf16::{Ekf16, RefusalCounters};
 use crate::error::Error;
 use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::{
     GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
@@ -264,6 +269,28 @@ fn thin_out<E: Copy, const N: usize>(ring: &mut Ring<E, N>) -> u32 {
     dropped
 }
 
+impl NavRefusals {
+    /// Nothing counted (the `const` of [`Default::default`]).
+    const ZERO: Self = Self {
+        imu_non_finite: 0,
+        imu_out_of_range: 0,
+        imu_time: 0,
+        imu_ahead: 0,
+        imu_gap: 0,
+        gps_invalid: 0,
+        gps_time: 0,
+        gps_accuracy: 0,
+        gps_ahead: 0,
+        gps_mixed_frames: 0,
+        mag_invalid: 0,
+        mag_time: 0,
+        mag_ahead: 0,
+        mag_dropped: 0,
+        horizon_refused: 0,
+        delay_loop_refused: 0,
+    };
+}
+
 fn bump(counter: &mut u32) {
     *counter = counter.saturating_add(1);
 }
@@ -293,6 +320,11 @@ struct Whitening<T: Scalar> {
 }
 
 impl<T: Scalar> Whitening<T> {
+    const BLANK: Self = Self {
+        fir: None,
+        group_delay_s: T::ZERO,
+    };
+
     fn new(filter: WhiteningFilter<T>, rate_hz: T) -> Result<Self, Error> {
         Ok(Self {
             fir: match filter {
@@ -402,12 +434,114 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     refusals: NavRefusals,
     imu_samples: u64,
     horizon_steps: u64,
+    /// False in [`BLANK`](Self::BLANK) and after a failed
+    /// [`configure`](Self::configure): every sample is refused.
+    configured: bool,
 }
 
 impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// A navigator for a validated configuration whose delay range fits the
     /// history `HIST` at `imu_rate_hz` (with a 2 % rate margin).
+    ///
+    /// The value is built on the stack and returned: on a host that is
+    /// what you want. On a microcontroller, where the navigator is tens of
+    /// KB, start from [`BLANK`](Self::BLANK) in its final place (a
+    /// `static`) and [`configure`](Self::configure) it there.
     pub fn new(config: NavConfig<T>) -> Result<Self, Error> {
+        let mut nav = Self::BLANK;
+        nav.configure(config)?;
+        Ok(nav)
+    }
+
+    /// A navigator not configured yet: a `const` value the compiler builds,
+    /// every buffer empty, so a `static` holding it is laid out by the
+    /// linker and costs no stack at all. It refuses every sample
+    /// ([`Error::NotConfigured`]), its estimates are `None` and its
+    /// [`health`](Self::health) says [`AlignmentState::NotConfigured`]
+    /// until [`configure`](Self::configure) succeeds.
+    ///
+    /// ```
+    /// use core::cell::RefCell;
+    /// use delaynav::nav::{AlignmentState, DelayCompensatedNav, NavConfig};
+    /// use delaynav::{Error, Imu, Navigator};
+    /// use nalgebra::Vector3;
+    ///
+    /// // What a firmware does with `critical_section::Mutex<RefCell<..>>`
+    /// // or `cortex_m::singleton!`; a thread-local stands in for it here.
+    /// std::thread_local! {
+    ///     static NAV: RefCell<DelayCompensatedNav<f32, 520>> =
+    ///         const { RefCell::new(DelayCompensatedNav::BLANK) };
+    /// }
+    /// NAV.with_borrow_mut(|nav| {
+    ///     let imu = Imu { t_us: 1000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.8) };
+    ///     assert_eq!(nav.push_imu(&imu), Err(Error::NotConfigured));
+    ///     assert_eq!(nav.health().alignment, AlignmentState::NotConfigured);
+    ///     let mut config = NavConfig::default();
+    ///     config.delay_loop.fusion.delay_max_s = 0.5;
+    ///     nav.configure(config)?; // in place: a small stack
+    ///     nav.push_imu(&imu)?;
+    ///     assert_eq!(nav.health().alignment, AlignmentState::WaitingForImu);
+    ///     Ok::<(), Error>(())
+    /// })?;
+    /// # Ok::<(), Error>(())
+    /// ```
+    pub const BLANK: Self = Self {
+        config: NavConfig::ZEROED,
+        ekf: Ekf16::BLANK,
+        replaced_ekf_refusals: RefusalCounters::ZERO,
+        delay_loop: DefaultDelayLoop::BLANK,
+        accel_whitening: Whitening::BLANK,
+        gyro_whitening: Whitening::BLANK,
+        history: FractionalDelayLine::new(),
+        interpolation_taps: 0,
+        times: SampleTimes::new(),
+        forward: ForwardReckoner::new(),
+        deltas: DeltaAccumulator::new(),
+        mags_due: false,
+        filter_period_us: 0,
+        mags: Ring::new(Mag {
+            t_us: 0,
+            field_body: zeros_const(),
+        }),
+        mag_spacing_us: 0,
+        last_imu: None,
+        imu_clock: StreamClock::NEW,
+        gps_clock: StreamClock::NEW,
+        mag_clock: StreamClock::NEW,
+        last_reset: None,
+        valid_delay_updates: 0,
+        retained_biases: None,
+        mag_at_horizon: false,
+        geodetic_fixes: None,
+        last_update: None,
+        pending_delay_fix: None,
+        present_accel: zeros_const(),
+        refusals: NavRefusals::ZERO,
+        imu_samples: 0,
+        horizon_steps: 0,
+        configured: false,
+    };
+
+    /// True once a [`configure`](Self::configure) (or [`new`](Self::new))
+    /// succeeded.
+    pub fn is_configured(&self) -> bool {
+        self.configured
+    }
+
+    /// Validates `config` and (re)starts the navigator with it in place:
+    /// afterwards it is what [`new`](Self::new) returns for `config` (the
+    /// counters too). The big members (history, output ring, delay loop
+    /// buffers) are emptied through `&mut`, never rebuilt by value, so the
+    /// stack this needs is small and does not grow with `HIST` (measured
+    /// on a Cortex-M4 in `docs/PERFORMANCE.md`). Works on
+    /// [`BLANK`](Self::BLANK) and on a navigator in use.
+    ///
+    /// On error (the configuration does not validate, or its delay range
+    /// does not fit `HIST`) the navigator is left not configured: it
+    /// refuses every sample and gives no estimate until a `configure`
+    /// succeeds.
+    pub fn configure(&mut self, config: NavConfig<T>) -> Result<(), Error> {
+        self.configured = false;
         config.validate()?;
         let accel_whitening = Whitening::new(config.accel_whitening, config.imu_rate_hz)?;
         let gyro_whitening = Whitening::new(config.gyro_whitening, config.imu_rate_hz)?;
@@ -439,44 +573,42 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         } else {
             0
         };
-        Ok(Self {
-            config,
-            ekf: Ekf16::new(config.ekf)?,
-            replaced_ekf_refusals: RefusalCounters::default(),
-            delay_loop: DefaultDelayLoop::new(config.loop_config())?,
-            accel_whitening,
-            gyro_whitening,
-            history: FractionalDelayLine::new(),
-            interpolation_taps: 0,
-            times: SampleTimes::new(),
-            forward: ForwardReckoner::new(stride_us),
-            deltas: DeltaAccumulator::new(),
-            mags_due: false,
-            filter_period_us,
-            mags: Ring::new(Mag {
-                t_us: 0,
-                field_body: Vector3::zeros(),
-            }),
-            mag_spacing_us: 0,
-            last_imu: None,
-            imu_clock: StreamClock::default(),
-            gps_clock: StreamClock::default(),
-            mag_clock: StreamClock::default(),
-            last_reset: None,
-            valid_delay_updates: 0,
-            retained_biases: None,
-            mag_at_horizon: false,
-            geodetic_fixes: None,
-            last_update: None,
-            pending_delay_fix: None,
-            present_accel: Vector3::zeros(),
-            refusals: NavRefusals::default(),
-            imu_samples: 0,
-            horizon_steps: 0,
-        })
+        self.ekf.configure(config.ekf)?;
+        self.delay_loop.configure(config.loop_config())?;
+        self.config = config;
+        self.replaced_ekf_refusals = RefusalCounters::default();
+        self.accel_whitening = accel_whitening;
+        self.gyro_whitening = gyro_whitening;
+        self.history.clear();
+        self.interpolation_taps = 0;
+        self.times.clear();
+        self.forward.configure(stride_us);
+        self.deltas.clear();
+        self.mags_due = false;
+        self.filter_period_us = filter_period_us;
+        self.mags.clear();
+        self.mag_spacing_us = 0;
+        self.last_imu = None;
+        self.imu_clock = StreamClock::default();
+        self.gps_clock = StreamClock::default();
+        self.mag_clock = StreamClock::default();
+        self.last_reset = None;
+        self.valid_delay_updates = 0;
+        self.retained_biases = None;
+        self.mag_at_horizon = false;
+        self.geodetic_fixes = None;
+        self.last_update = None;
+        self.pending_delay_fix = None;
+        self.present_accel = Vector3::zeros();
+        self.refusals = NavRefusals::default();
+        self.imu_samples = 0;
+        self.horizon_steps = 0;
+        self.configured = true;
+        Ok(())
     }
 
-    /// The configuration.
+    /// The configuration (every field zero on a navigator not configured:
+    /// see [`is_configured`](Self::is_configured)).
     pub fn config(&self) -> &NavConfig<T> {
         &self.config
     }
@@ -533,13 +665,16 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// The solution at the delayed horizon (the EKF's), `None` until initialized.
     pub fn horizon_estimate(&self) -> Option<Estimate<T>> {
+        if !self.configured {
+            return None;
+        }
         self.ekf.estimate().map(|e| self.with_delay(e))
     }
 
     /// NED acceleration at the present, `R(q)(f - b_f) + [0, 0, g]` from the
     /// newest raw sample, m/s^2 (`None` until the present estimate exists).
     pub fn acceleration_ned_m_s2(&self) -> Option<Vector3<T>> {
-        self.forward.is_ready().then_some(self.present_accel)
+        (self.configured && self.forward.is_ready()).then_some(self.present_accel)
     }
 
     /// Samples refused or dropped by the navigator.
@@ -554,12 +689,6 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// kept.
     pub fn ekf_refusals(&self) -> RefusalCounters {
         self.replaced_ekf_refusals.merged(self.ekf.refusals())
-    }
-
-    /// Puts a new horizon filter in place, keeping the old one's counters.
-    fn replace_ekf(&mut self, ekf: Ekf16<T>) {
-        self.replaced_ekf_refusals = self.ekf_refusals();
-        self.ekf = ekf;
     }
 
     /// Work counters.
@@ -584,9 +713,14 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// [`health`](Self::health)). Call it when a push returns
     /// [`Error::TimeWentBackwards`] for a clock that really went back (a
     /// rebooted sensor hub): every later sample would be refused otherwise.
-    /// No allocation; the horizon EKF and the delay loop are rebuilt from
-    /// the configuration, which [`new`](Self::new) validated.
+    /// No allocation; the horizon EKF and the delay loop are configured
+    /// again in place from the configuration, which
+    /// [`configure`](Self::configure) validated. Nothing happens to a
+    /// navigator not configured.
     pub fn reset(&mut self) {
+        if !self.configured {
+            return;
+        }
         if let Some(x) = self.ekf.nav_state() {
             let p = self.ekf.covariance();
             let mut biases = SVector::<T, 6>::zeros();
@@ -599,12 +733,13 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             }
             self.retained_biases = Some((biases, variances));
         }
-        if let Ok(ekf) = Ekf16::new(self.config.ekf) {
-            self.replace_ekf(ekf);
+        // Validated by `configure`: neither fails (a failure would leave
+        // the part refusing, never half reset).
+        let refusals = self.ekf_refusals();
+        if self.ekf.configure(self.config.ekf).is_ok() {
+            self.replaced_ekf_refusals = refusals;
         }
-        if let Ok(delay_loop) = DefaultDelayLoop::new(self.config.loop_config()) {
-            self.delay_loop = delay_loop;
-        }
+        let _ = self.delay_loop.configure(self.config.loop_config());
         self.accel_whitening.reset();
         self.gyro_whitening.reset();
         self.history.clear();
@@ -632,7 +767,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// Where the navigator is in its start-up.
     pub fn alignment(&self) -> AlignmentState {
-        if self.forward.is_ready() {
+        if !self.configured {
+            AlignmentState::NotConfigured
+        } else if self.forward.is_ready() {
             AlignmentState::Aligned
         } else if self.ekf.is_initialized() {
             AlignmentState::CarryingForward
@@ -900,8 +1037,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         if let Some(frame) = self.ekf.frame() {
             config.origin = Some(frame.origin());
         }
-        if let Ok(ekf) = Ekf16::from_state_with_covariance(config, t_us, &x, &p) {
-            self.replace_ekf(ekf);
+        // In place (this runs in a push): the old filter's counters are
+        // kept; on error nothing changed.
+        let refusals = self.ekf_refusals();
+        if self.ekf.configure_from_state(config, t_us, &x, &p).is_ok() {
+            self.replaced_ekf_refusals = refusals;
         }
     }
 
@@ -985,6 +1125,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// sample. A gap longer than the EKF's `max_imu_step_us` restarts the
     /// history and returns [`Error::StepTooLong`] after keeping the sample.
     fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let s = self.check_imu(imu)?;
         let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
         let max_step = self.config.ekf.max_imu_step_us;
@@ -1064,6 +1207,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// loop at a later IMU sample (module docs). Refused, state unchanged: invalid values,
     /// a velocity beyond the loop's plausible range, time not increasing.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let fix = checked_gps(gps).inspect_err(|e| {
             bump(&mut self.refusals.gps_invalid);
             if let Error::NonFinite { field } | Error::OutOfRange { field, .. } = e
@@ -1136,6 +1282,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// Queues the sample until the horizon reaches its time (module docs).
     /// Refused, state unchanged: non-finite or zero field, time not increasing.
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
+        if !self.configured {
+            return Err(Error::not_configured());
+        }
         let m = checked_mag(mag).inspect_err(|_| bump(&mut self.refusals.mag_invalid))?;
         let newest_imu = self.imu_clock.last().or(Some(m.t_us));
         let max_jump = self.config.max_time_jump_us;
@@ -1169,7 +1318,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// IMU sample; biases and covariance are the horizon EKF's. `None` until
     /// the first correction has reached the present (module docs).
     fn estimate(&self) -> Option<Estimate<T>> {
-        if !self.forward.is_ready() {
+        if !(self.configured && self.forward.is_ready()) {
             return None;
         }
         let horizon = self.ekf.estimate()?;

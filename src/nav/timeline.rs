@@ -47,7 +47,7 @@ fn low_bits(t_us: u64) -> u32 {
 }
 
 impl<const N: usize> SampleTimes<N> {
-    pub(crate) fn new() -> Self {
+    pub(crate) const fn new() -> Self {
         Self {
             low_bits: Ring::new(0),
             newest: 0,
@@ -127,6 +127,12 @@ pub(crate) enum ClockRefusal {
 }
 
 impl StreamClock {
+    /// No sample yet (the `const` of [`Default::default`]).
+    pub(crate) const NEW: Self = Self {
+        last: None,
+        candidate: None,
+    };
+
     /// The last accepted time.
     pub(crate) fn last(&self) -> Option<u64> {
         self.last

@@ -42,11 +42,13 @@
 //!   instant the fix describes (`t - tau`, the true delay);
 //! - the magnetometer ([`BoundMagnetometer`]): by default the whole field,
 //!   `m_b = R^T m_n + n_m`, `H = [R^T [m_n]x, 0...]`, variance `s_m²` per
-//!   axis: two degrees of attitude, tilt included (the crate's filters take
-//!   tilt from it only while aligning, or with
-//!   `Ekf16Config::mag_corrects_tilt`; by default their update is
-//!   heading-only once the tilt is known, so [`BoundMagnetometer::Heading`]
-//!   is their fair yardstick); or a heading alone,
+//!   axis: two degrees of attitude, tilt included. The crate's filters take
+//!   one degree from it, the heading of the field de-rotated with their
+//!   estimated tilt, `H = [-tan I cos D, -tan I sin D, 1, 0...]`, variance
+//!   `s_m² / cos² I` ([`BoundMagnetometer::FilterHeading`]; with the optimal
+//!   gain, the bound of any filter taking that heading; with their
+//!   heading-only gain once the tilt is known, their own covariance about
+//!   the truth). Or a heading sensor,
 //!   `H = [tan(theta) cos(psi), tan(theta) sin(psi), 1, 0...]` (the ZYX yaw
 //!   change of a rotation-vector error `phi`), variance `s_m² / cos² I`, the
 //!   model of [`noise_floor`](super::noise_floor()).
@@ -73,6 +75,7 @@
 //! [`tilt_heading_error_rad`]: super::tilt_heading_error_rad
 
 use super::{STANDARD_GRAVITY, SensorConfig, SimConfig, SimEvent};
+use crate::Ekf16Config;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// Size of the error state.
@@ -95,8 +98,21 @@ type Cov = SMatrix<f64, N, N>;
 pub enum BoundMagnetometer {
     /// The whole field: heading and tilt (module docs).
     Field,
-    /// The tilt-compensated heading only, as [`noise_floor`](super::noise_floor()) models it.
+    /// A heading alone, the ZYX yaw, as [`noise_floor`](super::noise_floor()) models it.
     Heading,
+    /// What the crate's filters take from the magnetometer: the heading of
+    /// the field de-rotated with the *estimated* tilt, which a tilt error
+    /// along the field's horizontal direction moves by `tan I` times
+    /// (`dpsi = phi_D - tan I (phi_N cos D + phi_E sin D)`), variance
+    /// `s_m² / cos² I`. Fused with the optimal gain while the tilt is less
+    /// certain than [`BoundConfig::mag_tilt_alignment_std_rad`], after that
+    /// with the filters' heading-only gain (`Ekf16Config::mag_corrects_tilt`
+    /// false: the correction turns about the vertical only, the
+    /// accelerometer biases and the body roll and pitch rate biases stay,
+    /// Joseph form). With a threshold of 0 the gain is always optimal: a
+    /// bound for any filter taking that heading; above 0, not a bound but
+    /// the covariance of the filters' own gain about the truth.
+    FilterHeading,
 }
 
 /// Prior of the bound's filter (standard deviations at the first IMU
@@ -105,6 +121,11 @@ pub enum BoundMagnetometer {
 pub struct BoundConfig {
     /// What the magnetometer contributes.
     pub magnetometer: BoundMagnetometer,
+    /// With [`BoundMagnetometer::FilterHeading`]: the optimal gain is used
+    /// while the larger of the north and east attitude standard deviations
+    /// is above this, rad (`Ekf16Config::mag_tilt_alignment_std_rad`); 0:
+    /// always.
+    pub mag_tilt_alignment_std_rad: f64,
     /// Tilt, per horizontal axis, radians.
     pub tilt_std_rad: f64,
     /// Heading, radians.
@@ -120,19 +141,37 @@ pub struct BoundConfig {
 }
 
 impl BoundConfig {
-    /// The prior the crate's filters start from on a simulated run: biases
-    /// with the spread of the simulator's uniform draw (`max / sqrt(3)`),
-    /// tilt and heading 0.1 and 0.5 rad, position and velocity the GPS's
-    /// own noise; the whole magnetometer field.
+    /// The prior the crate's filters start from on a simulated run
+    /// ([`SensorConfig::ekf16_config`]: biases with the spread of the
+    /// simulator's uniform draw, `max / sqrt(3)`, tilt 0.1 rad, heading
+    /// 0.3 rad, position 5 m, velocity 1 m/s); the whole magnetometer field.
     pub fn for_sensors(sensors: &SensorConfig) -> Self {
         Self {
             magnetometer: BoundMagnetometer::Field,
-            tilt_std_rad: 0.1,
-            heading_std_rad: 0.5,
-            position_std_m: sensors.gps_position_var_m2.sqrt().max(0.1),
-            velocity_std_m_s: sensors.gps_velocity_var_m2_s2.sqrt().max(0.01),
-            accel_bias_std_m_s2: sensors.accel_bias_max_m_s2() / 3f64.sqrt(),
-            gyro_bias_std_rad_s: sensors.gyro_bias_max_rad_s / 3f64.sqrt(),
+            ..Self::for_filter(&sensors.ekf16_config())
+        }
+    }
+
+    /// The prior of a filter configured with `filter` (its initial standard
+    /// deviations, the heading one with a magnetometer), and the
+    /// magnetometer as it uses it ([`BoundMagnetometer::FilterHeading`]):
+    /// with `mag_corrects_tilt`, the optimal gain throughout (threshold 0),
+    /// else its heading-only gain once the tilt is below its alignment
+    /// threshold.
+    pub fn for_filter(filter: &Ekf16Config<f64>) -> Self {
+        Self {
+            magnetometer: BoundMagnetometer::FilterHeading,
+            mag_tilt_alignment_std_rad: if filter.mag_corrects_tilt {
+                0.0
+            } else {
+                filter.mag_tilt_alignment_std_rad
+            },
+            tilt_std_rad: filter.initial_tilt_std_rad,
+            heading_std_rad: filter.initial_yaw_std_rad,
+            position_std_m: filter.initial_position_std_m,
+            velocity_std_m_s: filter.initial_velocity_std_m_s,
+            accel_bias_std_m_s2: filter.initial_accel_bias_std_m_s2,
+            gyro_bias_std_rad_s: filter.initial_gyro_bias_std_rad_s,
         }
     }
 
@@ -145,6 +184,10 @@ impl BoundConfig {
             ("velocity_std_m_s", self.velocity_std_m_s),
             ("accel_bias_std_m_s2", self.accel_bias_std_m_s2),
             ("gyro_bias_std_rad_s", self.gyro_bias_std_rad_s),
+            (
+                "mag_tilt_alignment_std_rad",
+                self.mag_tilt_alignment_std_rad,
+            ),
         ];
         for (field, x) in fields {
             if !(x.is_finite() && x >= 0.0) {
@@ -248,6 +291,9 @@ struct Model {
     var_field: f64,
     field_ned: Vector3<f64>,
     magnetometer: BoundMagnetometer,
+    mag_tilt_alignment_var: f64,
+    /// `d psi / d phi` of [`BoundMagnetometer::FilterHeading`].
+    filter_heading_jacobian: Vector3<f64>,
 }
 
 impl Model {
@@ -316,6 +362,7 @@ impl Model {
         match self.magnetometer {
             BoundMagnetometer::Field => self.fuse_field(p, step),
             BoundMagnetometer::Heading => self.fuse_heading(p, step),
+            BoundMagnetometer::FilterHeading => self.fuse_filter_heading(p, step),
         }
     }
 
@@ -351,6 +398,37 @@ impl Model {
             return;
         }
         *p -= ph * ph.transpose() / s;
+        symmetrize(p);
+    }
+
+    /// Fuses the filters' heading ([`BoundMagnetometer::FilterHeading`]).
+    fn fuse_filter_heading(&self, p: &mut Cov, step: &Step) {
+        let mut h = SVector::<f64, N>::zeros();
+        h.fixed_rows_mut::<3>(PHI)
+            .copy_from(&self.filter_heading_jacobian);
+        let ph = *p * h;
+        let s = h.dot(&ph) + self.var_heading;
+        if !(s.is_finite() && s > 0.0) {
+            return;
+        }
+        let mut k = ph / s;
+        let aligning = p[(PHI, PHI)].max(p[(PHI + 1, PHI + 1)]) > self.mag_tilt_alignment_var;
+        if !aligning {
+            // The filters' restriction: the correction is a turn about the
+            // NED down axis by the ZYX yaw change the gain asks for; no
+            // accelerometer bias; of the gyro bias, its body-down part.
+            let (pitch, yaw) = (step.euler.y, step.euler.z);
+            let yaw_row = Vector3::new(pitch.tan() * yaw.cos(), pitch.tan() * yaw.sin(), 1.0);
+            let dyaw = yaw_row.dot(&k.fixed_rows::<3>(PHI));
+            k.fixed_rows_mut::<3>(PHI)
+                .copy_from(&Vector3::new(0.0, 0.0, dyaw));
+            k.fixed_rows_mut::<3>(BA).fill(0.0);
+            let down = step.rotation.transpose() * Vector3::z();
+            let kg = down * down.dot(&k.fixed_rows::<3>(BG));
+            k.fixed_rows_mut::<3>(BG).copy_from(&kg);
+        }
+        let a = Cov::identity() - k * h.transpose();
+        *p = a * *p * a.transpose() + k * k.transpose() * self.var_heading;
         symmetrize(p);
     }
 
@@ -468,6 +546,11 @@ pub fn trajectory_bound(
         var_field: sensors.mag_noise_var,
         field_ned: super::field_ned(sensors.inclination_rad, sensors.declination_rad),
         magnetometer: bound.magnetometer,
+        mag_tilt_alignment_var: bound.mag_tilt_alignment_std_rad.powi(2),
+        filter_heading_jacobian: {
+            let (i, d) = (sensors.inclination_rad, sensors.declination_rad);
+            Vector3::new(-i.tan() * d.cos(), -i.tan() * d.sin(), 1.0)
+        },
     };
     let mut p0 = Cov::zeros();
     let b = bound;

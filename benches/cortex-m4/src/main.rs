@@ -15,13 +15,15 @@
 //!   GPS push that follows it before sample `k + 1` (the simulator stamps
 //!   them with the same time step and orders them after the IMU sample).
 //!   `estimate()` is counted apart, once per IMU sample.
-//! - RAM: `size_of` of the estimator, which is constructed into the top of
-//!   the part's 128 KB (WORK in `memory.x`) the way a user fills a `static`
-//!   (`slot.write(E::new(..))`); below it the thread stack (PSP) is painted,
-//!   and the deepest overwritten word after construction and after the
-//!   pushes gives the stack peak, construction included. With `stack` on
-//!   the command line the estimator is instead a local of the thread's first
-//!   frame (no copy while it is built), its `size_of` subtracted from the
+//! - RAM: `size_of` of the estimator, which is constructed in place at the
+//!   top of the part's 128 KB (WORK in `memory.x`) the way a user fills a
+//!   `static`: the slot holds the estimator's `const` blank value (`BLANK`,
+//!   what the linker puts in a `static`), then `configure` sets it up where
+//!   it lies. Below it the thread stack (PSP) is painted, and the deepest
+//!   overwritten word after construction and after the pushes gives the
+//!   stack peak, construction (`configure`) included. With `stack` on the
+//!   command line the estimator is instead a local of the thread's first
+//!   frame (`BLANK` then `configure`), its `size_of` subtracted from the
 //!   stack figures; with `outside` likewise, but the stack may also use the
 //!   SRAM QEMU maps beyond the part's 128 KB: the counts of an estimator
 //!   that does not fit. The stack grows towards 0x20000000: an overflow
@@ -38,7 +40,7 @@
 
 use core::arch::asm;
 use core::hint::black_box;
-use core::mem::{MaybeUninit, align_of, size_of};
+use core::mem::{align_of, size_of};
 use core::sync::atomic::{Ordering, compiler_fence};
 
 use cortex_m::peripheral::SYST;
@@ -220,33 +222,34 @@ fn ekf_config() -> Ekf16Config<f32> {
     }
 }
 
-/// An estimator this firmware can construct from the task.
+/// An estimator this firmware can construct in place from the task.
 trait Subject: Navigator<f32> + Sized {
-    /// Inlined into the caller so that the result is built where the caller
-    /// wants it.
-    fn build(task: &Task) -> Result<Self, Error>;
+    /// The estimator's `const` blank value.
+    const BLANK: Self;
+    /// Sets the blank value up for the task where it lies.
+    fn configure(&mut self, task: &Task) -> Result<(), Error>;
 }
 
 impl Subject for Ekf16<f32> {
-    #[inline(always)]
-    fn build(_: &Task) -> Result<Self, Error> {
-        Ekf16::new(ekf_config())
+    const BLANK: Self = Ekf16::BLANK;
+    fn configure(&mut self, _: &Task) -> Result<(), Error> {
+        Ekf16::configure(self, ekf_config())
     }
 }
 
 impl Subject for AugmentedEkf17<f32> {
-    #[inline(always)]
-    fn build(task: &Task) -> Result<Self, Error> {
+    const BLANK: Self = AugmentedEkf17::BLANK;
+    fn configure(&mut self, task: &Task) -> Result<(), Error> {
         let mut config = Aekf17Config::with_nav(ekf_config());
         config.initial_delay_s = sim::TRUE_DELAY_S;
         config.max_delay_s = task.max_delay_s;
-        AugmentedEkf17::new(config)
+        AugmentedEkf17::configure(self, config)
     }
 }
 
 impl<const HIST: usize> Subject for DelayCompensatedNav<f32, HIST> {
-    #[inline(always)]
-    fn build(task: &Task) -> Result<Self, Error> {
+    const BLANK: Self = DelayCompensatedNav::BLANK;
+    fn configure(&mut self, task: &Task) -> Result<(), Error> {
         let mode = if task.estimated {
             DelayMode::Estimated {
                 initial_s: sim::TRUE_DELAY_S,
@@ -263,7 +266,7 @@ impl<const HIST: usize> Subject for DelayCompensatedNav<f32, HIST> {
             ..NavConfig::default()
         };
         config.delay_loop.fusion.delay_max_s = task.max_delay_s;
-        DelayCompensatedNav::new(config)
+        DelayCompensatedNav::configure(self, config)
     }
 }
 
@@ -421,13 +424,18 @@ fn close_group(stats: &mut Stats, t_us: u64, ticks: u32) {
     stats.samples.add(ticks, true);
 }
 
-/// Builds the estimator into `slot`: the whole `Result` is written there
-/// through a reference the optimiser knows is valid, so that `new()` can
-/// return straight into it rather than into a temporary copied afterwards
-/// (what `new()` allows today).
+/// Builds the estimator in place in `slot`: the blank value is written
+/// there (the image a linker gives a `static`; no stack copy of it), then
+/// configured where it lies.
 #[inline(never)]
-fn construct<E: Subject>(slot: &mut MaybeUninit<Result<E, Error>>) {
-    slot.write(E::build(&task()));
+fn construct<E: Subject>(slot: *mut E) -> Result<(), Error> {
+    // SAFETY: `slot` is aligned for `E` and `size_of::<E>()` bytes of SRAM
+    // that nothing else uses.
+    let estimator = unsafe {
+        slot.write(E::BLANK);
+        &mut *slot
+    };
+    estimator.configure(&task())
 }
 
 fn paint(from: usize, to: usize) {
@@ -461,16 +469,13 @@ extern "C" fn thread<E: Subject>() -> ! {
     let t = task();
     set_phase("construct");
     if t.placement == Placement::Static {
-        // SAFETY: `t.slot` is aligned for the result and `size_of` bytes of
-        // SRAM that nothing else uses.
-        let slot = unsafe { &mut *(t.slot as *mut MaybeUninit<Result<E, Error>>) };
-        construct::<E>(slot);
-        let slot = slot.as_mut_ptr();
+        let slot = t.slot as *mut E;
+        let constructed = construct::<E>(slot);
         let stack_construct = stack_used(t.stack_top);
-        // SAFETY: constructed above; nothing else refers to the slot.
-        match unsafe { &mut *slot } {
-            Ok(estimator) => run(estimator, stack_construct, 0),
-            Err(e) => fail_construct(*e),
+        match constructed {
+            // SAFETY: constructed above; nothing else refers to the slot.
+            Ok(()) => run(unsafe { &mut *slot }, stack_construct, 0),
+            Err(e) => fail_construct(e),
         }
     } else {
         on_stack::<E>()
@@ -481,11 +486,12 @@ extern "C" fn thread<E: Subject>() -> ! {
 /// are subtracted from the stack figures.
 #[inline(never)]
 fn on_stack<E: Subject>() -> ! {
-    let mut result = E::build(&task());
+    let mut estimator = E::BLANK;
+    let constructed = estimator.configure(&task());
     let stack_construct = stack_used(task().stack_top);
-    match &mut result {
-        Ok(estimator) => run(estimator, stack_construct, size_of::<Result<E, Error>>()),
-        Err(e) => fail_construct(*e),
+    match constructed {
+        Ok(()) => run(&mut estimator, stack_construct, size_of::<E>()),
+        Err(e) => fail_construct(e),
     }
 }
 
@@ -563,8 +569,8 @@ fn placement(t: &Task) -> &'static str {
 /// and continues in `thread::<E>` on that stack.
 fn launch<E: Subject>() -> ! {
     let size = size_of::<E>();
-    let slot_size = size_of::<Result<E, Error>>();
-    let align = align_of::<Result<E, Error>>().max(8);
+    let slot_size = size;
+    let align = align_of::<E>().max(8);
     let (slot, top) = match task().placement {
         Placement::Static => {
             let slot = (work_end() - slot_size) & !(align - 1);

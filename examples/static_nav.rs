@@ -1,0 +1,71 @@
+//! The navigator in a `static`, constructed in place.
+//!
+//! `DelayCompensatedNav::BLANK` is a `const`: the compiler builds it and the
+//! linker lays the `static` out, so no stack holds a copy of the navigator
+//! (tens of KB) at any time. `configure` then validates the configuration
+//! and sets the navigator up where it lies, on a small stack. On a
+//! microcontroller the `static` would be a
+//! `critical_section::Mutex<RefCell<DelayCompensatedNav<f32, H>>>` (or a
+//! `cortex_m::singleton!`); here `std`'s `Mutex` stands in for it.
+//!
+//! ```sh
+//! cargo run --release --example static_nav
+//! ```
+
+use std::sync::Mutex;
+
+use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::{Error, Gps, GpsPosition, Imu, Navigator};
+use nalgebra::Vector3;
+
+/// History for a 0.5 s maximum delay at 1 kHz: `configure` checks that
+/// `ceil(0.5 s x 1000 Hz x 1.02) + 5 = 515 <= HIST`.
+const HIST: usize = 520;
+
+/// The navigator, blank until `main` configures it.
+static NAV: Mutex<DelayCompensatedNav<f32, HIST>> = Mutex::new(DelayCompensatedNav::BLANK);
+
+fn main() -> Result<(), Error> {
+    let mut nav = NAV.lock().expect("only main locks it");
+    assert_eq!(nav.health().alignment, AlignmentState::NotConfigured);
+
+    let mut config = NavConfig::<f32>::default();
+    config.delay_loop.fusion.delay_max_s = 0.5;
+    config.mode = DelayMode::Estimated { initial_s: 0.2 };
+    nav.configure(config)?;
+
+    // Level and at rest, 1 kHz IMU; a 10 Hz GPS whose fixes arrive 0.2 s
+    // late (at rest they all read the same).
+    let gravity = Vector3::new(0.0, 0.0, -9.80665);
+    for k in 1..=3000u64 {
+        let t_us = k * 1000;
+        nav.push_imu(&Imu {
+            t_us,
+            gyro_rad_s: Vector3::zeros(),
+            accel_m_s2: gravity,
+        })?;
+        if k % 100 == 0 {
+            nav.push_gps(&Gps {
+                t_us,
+                position: GpsPosition::Ned(Vector3::new(10.0, -5.0, 0.0)),
+                velocity_ned_m_s: Vector3::zeros(),
+                horizontal_accuracy_m: None,
+                vertical_accuracy_m: None,
+                speed_accuracy_m_s: None,
+            })?;
+        }
+    }
+    let health = nav.health();
+    let now = nav.estimate().ok_or(Error::NotInitialized)?;
+    println!(
+        "navigator of {} bytes in a static, {:?}, position {:.2?} m at t = {} us",
+        core::mem::size_of::<DelayCompensatedNav<f32, HIST>>(),
+        health.alignment,
+        now.position_ned_m.as_slice(),
+        now.t_us,
+    );
+    // The same static configured again (a new flight): in place too.
+    nav.configure(config)?;
+    assert_eq!(nav.health().alignment, AlignmentState::WaitingForImu);
+    Ok(())
+}
