@@ -481,11 +481,11 @@ macro_rules! delay_tests {
             /// three measurements: P = Pbar r / (Pbar + r), r = R/3, Pbar = P + Q.
             #[test]
             fn gain_fusion_fixed_point() {
-                let config = GainFusionConfig::<T> { initial_delay_s: 0.1, initial_std_s: 0.1, ..Default::default() };
+                let config = GainFusionConfig::<T> { initial_delay_s: 0.1, initial_std_s: 0.1, rate_std: 0.0, ..Default::default() };
                 let mut gfa = GainFusion::new(config).unwrap();
                 let (q, r): (f64, f64) = (1e-6, 1e-4);
                 for _ in 0..2000 {
-                    gfa.step([0.3; 3], [true; 3], q as T, [r as T; 3]).unwrap();
+                    gfa.step([0.3; 3], [true; 3], 0.1, q as T, [r as T; 3]).unwrap();
                 }
                 let r3 = r / 3.0;
                 let p_bar = (q + (q * q + 4.0 * q * r3).sqrt()) / 2.0;
@@ -494,17 +494,17 @@ macro_rules! delay_tests {
                 assert!((gfa.variance_s2() as f64 - p_star).abs() < 1e-3 * p_star + TOL * 1e-4, "{} vs {p_star}", gfa.variance_s2());
                 // All invalid: the estimate holds, P grows by Q.
                 let before = (gfa.delay_s(), gfa.variance_s2() as f64);
-                let step = gfa.step([0.9; 3], [false; 3], q as T, [r as T; 3]).unwrap();
+                let step = gfa.step([0.9; 3], [false; 3], 0.1, q as T, [r as T; 3]).unwrap();
                 assert_eq!(step.delay_s, before.0);
                 assert!((gfa.variance_s2() as f64 - (before.1 + q)).abs() < 1e-3 * q);
                 // The estimate stays in range; a bad step is refused with no change.
                 for _ in 0..100 {
-                    gfa.step([5.0; 3], [true; 3], 1e-2, [1e-4; 3]).unwrap();
+                    gfa.step([5.0; 3], [true; 3], 0.1, 1e-2, [1e-4; 3]).unwrap();
                 }
                 assert_eq!(gfa.delay_s(), 1.0);
                 let snapshot = gfa;
-                assert!(gfa.step([T::NAN, 0.2, 0.2], [true; 3], q as T, [r as T; 3]).is_err());
-                assert!(gfa.step([0.2; 3], [true; 3], -1.0, [r as T; 3]).is_err());
+                assert!(gfa.step([T::NAN, 0.2, 0.2], [true; 3], 0.1, q as T, [r as T; 3]).is_err());
+                assert!(gfa.step([0.2; 3], [true; 3], 0.1, -1.0, [r as T; 3]).is_err());
                 assert_eq!(snapshot, gfa);
             }
 
