@@ -14,7 +14,8 @@
 //! prediction      phi = exp(-dt / T_r),  F = [[1, T_r (1 - phi)], [0, phi]]
 //!                 x_bar = F x,  P_bar = F P F' + Q
 //!                 Q = [[Q_f + q_r dt^3 / 3, q_r dt^2 / 2], [q_r dt^2 / 2, sigma_r^2 (1 - phi^2)]],
-//!                 q_r = 2 sigma_r^2 / T_r   (the rate's white-noise intensity, s^2/s^3)
+//!                 q_r = 2 sigma_r^2 / T_r   (the rate's white-noise intensity, s^2/s^3;
+//!                 Q as written for dt << T_r, computed exactly for any dt)
 //! measurement     K_i   = gamma P_bar H' (H P_bar H' + gamma R_i)^-1          (2 x 1)
 //!                 x_i   = x_bar + V_i K_i (z_i - tau_bar)
 //! global fusion   x     = sum_i x_i - (m - 1) x_bar                           (m = 3)
@@ -231,20 +232,34 @@ impl<T: Scalar> GainFusion<T> {
     /// The prediction over `dt_s` (module docs): `(tau_bar, rho_bar, P_bar)`.
     fn predict(&self, dt_s: T, process_noise_s2: T) -> (T, T, [T; 3]) {
         let [p_dd, p_dr, p_rr] = self.covariance;
-        let rate_std = self.config.rate_std;
         let time_constant = self.config.rate_time_constant_s;
-        let phi = (-dt_s / time_constant).exp();
-        // F = [[1, f], [0, phi]].
-        let f = time_constant * (T::one() - phi);
-        let q_r = T::lit(2.0) * rate_std * rate_std / time_constant;
-        let dt2 = dt_s * dt_s;
-        let mut p_dd = p_dd
-            + T::lit(2.0) * f * p_dr
-            + f * f * p_rr
-            + process_noise_s2
-            + q_r * dt2 * dt_s / T::lit(3.0);
-        let mut p_dr = phi * (p_dr + f * p_rr) + q_r * dt2 / T::lit(2.0);
-        let p_rr = phi * phi * p_rr + rate_std * rate_std * (T::one() - phi * phi);
+        let a = dt_s / time_constant;
+        let phi = (-a).exp();
+        // F = [[1, f], [0, phi]], f = T_r (1 - phi) (exp_m1: exact for small dt).
+        let f = -time_constant * (-a).exp_m1();
+        // The rate's process noise, exact for any dt (the module docs give
+        // its small-dt form): with s2 = sigma_r^2,
+        // Q_dd = s2 T_r^2 (2a - 3 + 4 phi - phi^2), Q_dr = s2 T_r^2 (1 - phi)^2 / T_r,
+        // Q_rr = s2 (1 - phi^2), a = dt / T_r; Q_dd by its series below
+        // a = 0.1, where the closed form cancels (f32).
+        let s2 = self.config.rate_std * self.config.rate_std;
+        let (q_dd, q_dr, q_rr) = if s2 > T::zero() {
+            let q_dd = if a < T::lit(0.1) {
+                a * a * a * (T::lit(2.0 / 3.0) - a / T::lit(2.0) + T::lit(7.0 / 30.0) * a * a)
+            } else {
+                T::lit(2.0) * a - T::lit(3.0) + T::lit(4.0) * phi - phi * phi
+            };
+            (
+                s2 * time_constant * time_constant * q_dd,
+                s2 * f * f / time_constant,
+                s2 * (T::one() - phi * phi),
+            )
+        } else {
+            (T::zero(), T::zero(), T::zero())
+        };
+        let mut p_dd = p_dd + T::lit(2.0) * f * p_dr + f * f * p_rr + process_noise_s2 + q_dd;
+        let mut p_dr = phi * (p_dr + f * p_rr) + q_dr;
+        let p_rr = phi * phi * p_rr + q_rr;
         // Cap the delay's variance; scaling the cross term with it keeps
         // the correlation, so `P` stays positive semi-definite.
         let cap = self.variance_cap();
@@ -448,6 +463,56 @@ mod tests {
             lag(&on, 310.0)
         );
         assert!(lag(&off, 310.0) > 30.0);
+    }
+
+    /// Any finite `dt`, however long, leaves a finite state and `P` within
+    /// its caps; a non-finite one is refused.
+    fn long_gaps_stay_finite<T: Scalar>() {
+        let mut gfa = fusion::<T>(1e-3);
+        run(&mut gfa, 0.0, 30.0, |t| Some(0.2 + 1e-3 * t));
+        for dt in [1e-6, 0.01, 3.0, 100.0, 1e6, 1e30] {
+            let step = gfa
+                .step(
+                    [T::lit(0.25); AXES],
+                    [false; AXES],
+                    T::lit(dt),
+                    T::lit(Q_S2),
+                    [T::lit(R_S2); AXES],
+                )
+                .unwrap();
+            let [p_dd, p_dr, p_rr] = gfa.covariance;
+            assert!(step.delay_s.is_finite() && step.rate.is_finite(), "dt {dt}");
+            assert!(
+                p_dd.is_finite() && p_dr.is_finite() && p_rr.is_finite(),
+                "dt {dt}"
+            );
+            assert!(
+                p_dd <= gfa.variance_cap() && p_rr <= T::lit(1.0001e-6),
+                "dt {dt}"
+            );
+            assert!(p_dr * p_dr <= p_dd * p_rr * T::lit(1.0001), "dt {dt}");
+        }
+        let nan = T::lit(f64::NAN);
+        assert!(
+            gfa.step(
+                [T::lit(0.2); AXES],
+                [true; AXES],
+                nan,
+                T::lit(Q_S2),
+                [T::lit(R_S2); AXES]
+            )
+            .is_err()
+        );
+    }
+
+    #[test]
+    fn long_gaps_stay_finite_f32() {
+        long_gaps_stay_finite::<f32>();
+    }
+
+    #[test]
+    fn long_gaps_stay_finite_f64() {
+        long_gaps_stay_finite::<f64>();
     }
 
     #[test]
