@@ -767,6 +767,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.fusion.delay_s()
     }
 
+    /// Current estimate of the delay's drift rate, s/s (see
+    /// [`GainFusionConfig::rate_std`]).
+    pub fn delay_rate(&self) -> T {
+        self.fusion.rate()
+    }
+
     /// Standard deviation of the estimate, s: the GFA's `sqrt(P)` scaled by
     /// the innovation match (see [`SIGMA_MATCH_TIME_S`]) once locked, so
     /// that it describes the errors the loop actually makes rather than its
@@ -946,7 +952,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let gains = if self.following {
             self.follow(t_us, &z, &valid, &r_buffer_s2)
         } else {
-            let gains = self.fusion.step(z, valid, q_s2, r_s2)?.gains;
+            let gains = self.fusion.step(z, valid, dt_s, q_s2, r_s2)?.gains;
             let lock = self.config.lock_std_s;
             self.locked |= valid.iter().any(|&v| v) && self.fusion.variance_s2() <= lock * lock;
             gains
