@@ -240,12 +240,16 @@ fn restricted_gain<T: Scalar, const N: usize, const M: usize>(
     k: &[[T; M]; N],
 ) -> [[T; M]; N] {
     let mut out = [[T::zero(); M]; N];
-    // Column `j` of C scales row `j` of K into every row `i` of K'.
-    for (c_col, k_row) in c.data.0.iter().zip(k) {
-        for (out_row, &c_ij) in out.iter_mut().zip(c_col) {
+    // Column `j` of C scales row `j` of K into every row `i` of K'. Indices
+    // below their arrays' lengths (no failing bounds check): iterators
+    // zipped three ways cost the M4 twice the instructions.
+    #[allow(clippy::needless_range_loop)]
+    for j in 0..N {
+        for i in 0..N {
+            let c_ij = c.data.0[j][i];
             if c_ij != T::zero() {
-                for (o, &k_jm) in out_row.iter_mut().zip(k_row) {
-                    *o += c_ij * k_jm;
+                for m in 0..M {
+                    out[i][m] += c_ij * k[j][m];
                 }
             }
         }
@@ -310,10 +314,15 @@ fn joseph_in_place<T: Scalar, const N: usize, const M: usize>(
     }
     let diagonal = p.diagonal();
     let mut sum = T::zero();
-    for (j, (column, (k_j, u_j))) in p.data.0.iter_mut().zip(k.iter().zip(u)).enumerate() {
-        for ((entry, k_i), z_i) in column.iter_mut().zip(k).zip(&z).skip(j) {
-            *entry = (*entry - dot(k_i, u_j)) + dot(z_i, k_j);
-            sum += *entry;
+    let columns = &mut p.data.0;
+    // Indices below their arrays' lengths, as in `restricted_gain`.
+    #[allow(clippy::needless_range_loop)]
+    for j in 0..N {
+        let (k_j, u_j) = (&k[j], &u[j]);
+        for i in j..N {
+            let entry = (columns[j][i] - dot(&k[i], u_j)) + dot(&z[i], k_j);
+            columns[j][i] = entry;
+            sum += entry;
         }
     }
     if !sum.is_finite() {
