@@ -7,7 +7,7 @@
 //! f64 from the same inputs, relative to the largest entry of the result:
 //! below `1e-14` in f64 and `2e-6` in f32. The dense form in the same
 //! precision is printed beside it (`--nocapture`): both are at rounding level
-//! (measured: structured 4.4e-16 / 3.1e-7, sparse Joseph 5.9e-16 / 2.1e-7;
+//! (measured: structured 4.4e-16 / 3.1e-7, sparse Joseph 4.4e-16 / 1.9e-7;
 //! dense 0 / 4.1e-7 and 3.2e-16 / 2.9e-7).
 
 use delaynav::ekf16::process;

@@ -137,22 +137,40 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
     x: &SVector<T, N>,
 ) {
     let q = x.fixed_rows::<4>(QUAT).into_owned();
-    let proj = nalgebra::Matrix4::identity() - q * q.transpose();
-    // Rows q of T P; the quaternion block is (T P)[q, q] T^T. Columns
-    // outside q are mirrored from the rows, and the 4x4 block from its
-    // lower triangle, so P stays exactly symmetric.
-    let rows = proj * p.fixed_rows::<4>(QUAT);
-    let qq = rows.fixed_columns::<4>(QUAT) * proj;
-    for j in 0..N {
+    let q = &q.data.0[0];
+    let columns = &mut p.data.0;
+    // Rows q of T P, column by column: P[q, j] - q (q . P[q, j]).
+    for column in columns.iter_mut() {
+        let d = (0..4).fold(T::zero(), |acc, r| acc + q[r] * column[QUAT + r]);
         for r in 0..4 {
-            let v = if (QUAT..QUAT + 4).contains(&j) {
-                let c = j - QUAT;
-                qq[(r.max(c), r.min(c))]
-            } else {
-                rows[(r, j)]
-            };
-            p[(QUAT + r, j)] = v;
-            p[(j, QUAT + r)] = v;
+            column[QUAT + r] -= q[r] * d;
+        }
+    }
+    // Columns q: outside rows q the mirror of the rows just computed (one
+    // column read, another written: indices, not an iterator); the
+    // 4x4 block is (T P)[q, q] T^T = B - (B q) q^T, its lower triangle
+    // mirrored, so P stays exactly symmetric.
+    #[allow(clippy::needless_range_loop)]
+    for j in 0..N {
+        if !(QUAT..QUAT + 4).contains(&j) {
+            for r in 0..4 {
+                columns[QUAT + r][j] = columns[j][QUAT + r];
+            }
+        }
+    }
+    let mut b = [[T::zero(); 4]; 4];
+    for (c, b_col) in b.iter_mut().enumerate() {
+        for (r, b_rc) in b_col.iter_mut().enumerate() {
+            *b_rc = columns[QUAT + c][QUAT + r];
+        }
+    }
+    let bq: [T; 4] =
+        core::array::from_fn(|r| (0..4).fold(T::zero(), |acc, c| acc + b[c][r] * q[c]));
+    for c in 0..4 {
+        for r in c..4 {
+            let v = b[c][r] - bq[r] * q[c];
+            columns[QUAT + c][QUAT + r] = v;
+            columns[QUAT + r][QUAT + c] = v;
         }
     }
 }
@@ -955,8 +973,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         measurement: &'static str,
         gain_restriction: Option<&SMatrix<T, N, N>>,
     ) -> Result<FusionRecord<T, M>, Error> {
-        let (x_before, p_before) = (self.x, self.p);
-        let mut record = kalman::joseph_update_restricted(
+        // An absurd correction (the quaternion far from unit norm) is
+        // refused before `P` changes.
+        let mut norm = T::one();
+        let record = kalman::joseph_update_checked(
             &mut self.x,
             &mut self.p,
             innovation,
@@ -966,19 +986,15 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             t_us,
             measurement,
             gain_restriction,
+            |x| {
+                norm = quaternion_of(x).norm();
+                norm > T::lit(0.5) && norm < T::lit(2.0)
+            },
         )
         .inspect_err(|_| bump(&mut self.refusals.not_positive_definite))?;
         if record.fused {
-            let norm = quaternion_of(&self.x).norm();
-            if norm > T::lit(0.5) && norm < T::lit(2.0) {
-                self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
-                project_quaternion_covariance(&mut self.p, &self.x);
-            } else {
-                self.x = x_before;
-                self.p = p_before;
-                record.fused = false;
-                record.test_ratio = T::lit(f64::INFINITY);
-            }
+            self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
+            project_quaternion_covariance(&mut self.p, &self.x);
         }
         Ok(record)
     }
