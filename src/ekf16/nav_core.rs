@@ -194,6 +194,18 @@ pub(crate) fn check_position_kind<T: Scalar>(
     Ok(geodetic)
 }
 
+/// A record of nothing (all zero bytes): what a record slot holds before
+/// its first fusion.
+const fn zero_record<T: Scalar, const M: usize>() -> FusionRecord<T, M> {
+    FusionRecord {
+        t_us: 0,
+        innovation: zeros_const(),
+        innovation_variance: zeros_const(),
+        test_ratio: T::ZERO,
+        fused: false,
+    }
+}
+
 /// Inclination (rad, down from horizontal) of a body field `m_b` seen
 /// through the body-to-NED rotation `rot`: `asin((R m_b)_down / |m_b|)`.
 fn field_inclination<T: Scalar>(rot: &Matrix3<T>, field_body: &Vector3<T>) -> T {
@@ -313,8 +325,15 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     accel_mean: BoundedMean<T>,
     mag_mean: BoundedMean<T>,
     frame: Option<LocalFrame>,
-    last_gps: ZeroOption<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
-    last_mag: ZeroOption<FusionRecord<T, 3>>,
+    /// The last GPS fusion records (position, velocity), if `gps_recorded`.
+    /// A flag beside the records, not an `Option`: `None` would be stored in
+    /// the niche of `fused` (not zero bytes, see `BLANK`) and a
+    /// `ZeroOption` costs a copy of the records per fix.
+    last_gps: (FusionRecord<T, 3>, FusionRecord<T, 3>),
+    gps_recorded: bool,
+    /// The last magnetometer fusion record, if `mag_recorded` (as `last_gps`).
+    last_mag: FusionRecord<T, 3>,
+    mag_recorded: bool,
     /// Per GPS block (position, velocity): time of the last fix that
     /// initialized the filter, had the block fused or reset it (or of the
     /// first rejected fix of a filter started from a state).
@@ -371,8 +390,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             accel_mean: BoundedMean::EMPTY,
             mag_mean: BoundedMean::EMPTY,
             frame: None,
-            last_gps: ZeroOption::None,
-            last_mag: ZeroOption::None,
+            last_gps: (zero_record(), zero_record()),
+            gps_recorded: false,
+            last_mag: zero_record(),
+            mag_recorded: false,
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
             last_gps_reset: ZeroOption::None,
@@ -449,8 +470,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.accel_mean = BoundedMean::EMPTY;
         self.mag_mean = BoundedMean::EMPTY;
         self.frame = config.origin.map(LocalFrame::new);
-        self.last_gps = ZeroOption::None;
-        self.last_mag = ZeroOption::None;
+        self.gps_recorded = false;
+        self.mag_recorded = false;
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.last_gps_reset = ZeroOption::None;
@@ -569,12 +590,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// The last GPS fusion records (position, velocity).
     pub(crate) fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
-        self.last_gps.get()
+        self.gps_recorded.then_some(self.last_gps)
     }
 
     /// The last magnetometer fusion record.
     pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
-        self.last_mag.get()
+        self.mag_recorded.then_some(self.last_mag)
     }
 
     /// Value and variance of extra state `index` (`16..N`): the initial
@@ -1152,7 +1173,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !velocity.fused {
             bump(&mut self.refusals.gps_velocity_rejected);
         }
-        self.last_gps = ZeroOption::Some((position, velocity));
+        self.last_gps = (position, velocity);
+        self.gps_recorded = true;
     }
 
     /// Feeds one magnetometer sample: kept for the initial heading before
@@ -1223,7 +1245,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 bump(&mut self.refusals.mag_disturbed);
             }
         }
-        self.last_mag = ZeroOption::Some(record);
+        self.last_mag = record;
+        self.mag_recorded = true;
         Ok(MagOutcome::Fused(record))
     }
 
