@@ -456,7 +456,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// A navigator not configured yet: a `const` value the compiler builds,
     /// every buffer empty, so a `static` holding it is laid out by the
-    /// linker and costs no stack at all. It refuses every sample
+    /// linker and costs no stack at all. It is all zero bytes: a mutable
+    /// `static` of it goes to `.bss`, nothing of it in flash
+    /// (`tests/blank_bss.rs`). It refuses every sample
     /// ([`Error::NotConfigured`]), its estimates are `None` and its
     /// [`health`](Self::health) says [`AlignmentState::NotConfigured`]
     /// until [`configure`](Self::configure) succeeds.
