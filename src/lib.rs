@@ -70,6 +70,7 @@ pub mod scalar;
 pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
+mod zero_option;
 
 /// The linear algebra of the API (`Vector3`, `UnitQuaternion`, ...): use
 /// this re-export to get the version the crate was built with.

@@ -103,6 +103,7 @@ use nalgebra::Vector3;
 use crate::error::Error;
 use crate::scalar::Scalar;
 use crate::sensors::GpsFix;
+use crate::zero_option::ZeroOption;
 use grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
     non_negative_finite, positive_finite, signed_grid_samples, validate_grid,
@@ -629,7 +630,7 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     locked: bool,
     following: bool,
     stable_since_us: Option<u64>,
-    edge: Option<EdgeRun<T>>,
+    edge: ZeroOption<EdgeRun<T>>,
     status: DelayStatus<T>,
     /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
     /// [`configure`](DelayLoop::configure): every sample is refused.
@@ -680,7 +681,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         locked: false,
         following: false,
         stable_since_us: None,
-        edge: None,
+        edge: ZeroOption::None,
         status: DelayStatus::WaitingForData,
         configured: false,
     };
@@ -745,7 +746,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.locked = config.fusion.initial_std_s <= config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;
-        self.edge = None;
+        self.edge = ZeroOption::None;
         self.status = DelayStatus::WaitingForData;
         self.configured = true;
         Ok(())
@@ -958,7 +959,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             gains
         };
         self.last_update_us = Some(t_us);
-        self.status = match self.edge {
+        self.status = match self.edge.get() {
             Some(run)
                 if T::lit((t_us - run.since_us) as f64 * 1e-6)
                     >= self.config.out_of_range_after_s =>
@@ -1104,7 +1105,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             // Mixed edges, or nothing moving: keep the run as it is.
             _ => return,
         };
-        self.edge = match (edge_below, self.edge) {
+        self.edge = match (edge_below, self.edge.get()) {
             (None, _) => None,
             (Some(b), Some(run)) if run.below == b => Some(EdgeRun {
                 peak: run.peak.max(peak),
@@ -1115,7 +1116,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 below: b,
                 peak,
             }),
-        };
+        }
+        .into();
     }
 
     /// Re-acquisition (see [`DelayLoopConfig::reacquire_sigma`]): restarts the

@@ -93,7 +93,9 @@ pub struct DeltaAccumulator<T: Scalar> {
     start_us: Option<u64>,
     last: Option<Imu<T>>,
     sums: Sums<T>,
-    corrected: bool,
+    /// Coning and sculling corrections off (false: a blank value is zero
+    /// bytes).
+    uncorrected: bool,
 }
 
 impl<T: Scalar> Default for DeltaAccumulator<T> {
@@ -109,7 +111,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
             start_us: None,
             last: None,
             sums: Sums::ZERO,
-            corrected: true,
+            uncorrected: false,
         }
     }
 
@@ -117,7 +119,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
     /// for comparison only.
     pub fn uncorrected() -> Self {
         Self {
-            corrected: false,
+            uncorrected: true,
             ..Self::new()
         }
     }
@@ -133,7 +135,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
     /// Forgets everything, including the start sample.
     pub fn clear(&mut self) {
         *self = Self {
-            corrected: self.corrected,
+            uncorrected: self.uncorrected,
             ..Self::new()
         };
     }
@@ -168,7 +170,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
         let d_theta = (prev.gyro_rad_s + s.gyro_rad_s) * (h * half);
         let d_v = (prev.accel_m_s2 + s.accel_m_s2) * (h * half);
         let sums = &mut self.sums;
-        if self.corrected {
+        if !self.uncorrected {
             let h2_12 = h * h / T::lit(12.0);
             sums.coning +=
                 sums.alpha.cross(&d_theta) * half + prev.gyro_rad_s.cross(&s.gyro_rad_s) * h2_12;
@@ -191,7 +193,7 @@ impl<T: Scalar> DeltaAccumulator<T> {
             return None;
         }
         let s = self.sums;
-        let (delta_angle_rad, delta_velocity_m_s) = if self.corrected {
+        let (delta_angle_rad, delta_velocity_m_s) = if !self.uncorrected {
             (
                 s.alpha + s.coning,
                 s.upsilon + s.alpha.cross(&s.upsilon) * T::lit(0.5) + s.sculling,

@@ -78,6 +78,7 @@ use crate::sensors::{
     GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
     checked_mag,
 };
+use crate::zero_option::ZeroOption;
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
 /// The longest stretch of an IMU gap whose process noise is added to `P`,
@@ -191,6 +192,18 @@ pub(crate) fn check_position_kind<T: Scalar>(
         });
     }
     Ok(geodetic)
+}
+
+/// A record of nothing (all zero bytes): what a record slot holds before
+/// its first fusion.
+const fn zero_record<T: Scalar, const M: usize>() -> FusionRecord<T, M> {
+    FusionRecord {
+        t_us: 0,
+        innovation: zeros_const(),
+        innovation_variance: zeros_const(),
+        test_ratio: T::ZERO,
+        fused: false,
+    }
 }
 
 /// Inclination (rad, down from horizontal) of a body field `m_b` seen
@@ -312,8 +325,15 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     accel_mean: BoundedMean<T>,
     mag_mean: BoundedMean<T>,
     frame: Option<LocalFrame>,
-    last_gps: Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)>,
-    last_mag: Option<FusionRecord<T, 3>>,
+    /// The last GPS fusion records (position, velocity), if `gps_recorded`.
+    /// A flag beside the records, not an `Option`: `None` would be stored in
+    /// the niche of `fused` (not zero bytes, see `BLANK`) and a
+    /// `ZeroOption` costs a copy of the records per fix.
+    last_gps: (FusionRecord<T, 3>, FusionRecord<T, 3>),
+    gps_recorded: bool,
+    /// The last magnetometer fusion record, if `mag_recorded` (as `last_gps`).
+    last_mag: FusionRecord<T, 3>,
+    mag_recorded: bool,
     /// Per GPS block (position, velocity): time of the last fix that
     /// initialized the filter, had the block fused or reset it (or of the
     /// first rejected fix of a filter started from a state).
@@ -321,9 +341,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// Per GPS block: sum and count of the NIS of the accepted fusions of
     /// the current divergence window.
     gps_nis: [(T, u32); 2],
-    last_gps_reset: Option<GpsReset>,
+    last_gps_reset: ZeroOption<GpsReset>,
     /// Whether the fixes are geodetic (`Some(true)`) or NED, from the first.
-    geodetic_fixes: Option<bool>,
+    geodetic_fixes: ZeroOption<bool>,
     /// Mean field norm of the magnetometer samples before initialization.
     mag_norm_mean: BoundedMean<T, 1>,
     /// The learned field: norm (sensor units) and inclination (rad, down
@@ -370,12 +390,14 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             accel_mean: BoundedMean::EMPTY,
             mag_mean: BoundedMean::EMPTY,
             frame: None,
-            last_gps: None,
-            last_mag: None,
+            last_gps: (zero_record(), zero_record()),
+            gps_recorded: false,
+            last_mag: zero_record(),
+            mag_recorded: false,
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
-            last_gps_reset: None,
-            geodetic_fixes: None,
+            last_gps_reset: ZeroOption::None,
+            geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
             mag_field: None,
             refusals: RefusalCounters::ZERO,
@@ -448,12 +470,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.accel_mean = BoundedMean::EMPTY;
         self.mag_mean = BoundedMean::EMPTY;
         self.frame = config.origin.map(LocalFrame::new);
-        self.last_gps = None;
-        self.last_mag = None;
+        self.gps_recorded = false;
+        self.mag_recorded = false;
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
-        self.last_gps_reset = None;
-        self.geodetic_fixes = None;
+        self.last_gps_reset = ZeroOption::None;
+        self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;
         self.mag_field = None;
         self.refusals = RefusalCounters::default();
@@ -563,17 +585,17 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// The last reset of a GPS block.
     pub(crate) fn last_gps_reset(&self) -> Option<GpsReset> {
-        self.last_gps_reset
+        self.last_gps_reset.get()
     }
 
     /// The last GPS fusion records (position, velocity).
     pub(crate) fn last_gps_fusion(&self) -> Option<(FusionRecord<T, 3>, FusionRecord<T, 3>)> {
-        self.last_gps
+        self.gps_recorded.then_some(self.last_gps)
     }
 
     /// The last magnetometer fusion record.
     pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
-        self.last_mag
+        self.mag_recorded.then_some(self.last_mag)
     }
 
     /// Value and variance of extra state `index` (`16..N`): the initial
@@ -835,7 +857,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let fix = checked_gps(gps).inspect_err(|_| bump(&mut self.refusals.gps_invalid))?;
         check_time("gps", self.gps_clock_us, fix.t_us)
             .inspect_err(|_| bump(&mut self.refusals.gps_time))?;
-        let geodetic = check_position_kind(self.geodetic_fixes, &fix.position)
+        let geodetic = check_position_kind(self.geodetic_fixes.get(), &fix.position)
             .inspect_err(|_| bump(&mut self.refusals.gps_mixed_frames))?;
         let (frame, position) = match fix.position {
             GpsPosition::Ned(p) => (self.frame, p),
@@ -866,7 +888,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             position_noise: Matrix3::from_diagonal(&Vector3::new(h, h, v)),
             velocity_noise: Matrix3::identity() * s,
         };
-        self.geodetic_fixes = Some(geodetic);
+        self.geodetic_fixes = ZeroOption::Some(geodetic);
         if self.initialized {
             self.gps_clock_us = Some(fix.t_us);
             self.frame = frame;
@@ -1132,7 +1154,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let i = block as usize;
         self.gps_accepted_us[i] = Some(m.t_us);
         self.gps_nis[i] = (T::zero(), 0);
-        self.last_gps_reset = Some(GpsReset {
+        self.last_gps_reset = ZeroOption::Some(GpsReset {
             t_us: m.t_us,
             block,
             cause,
@@ -1151,7 +1173,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !velocity.fused {
             bump(&mut self.refusals.gps_velocity_rejected);
         }
-        self.last_gps = Some((position, velocity));
+        self.last_gps = (position, velocity);
+        self.gps_recorded = true;
     }
 
     /// Feeds one magnetometer sample: kept for the initial heading before
@@ -1222,7 +1245,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 bump(&mut self.refusals.mag_disturbed);
             }
         }
-        self.last_mag = Some(record);
+        self.last_mag = record;
+        self.mag_recorded = true;
         Ok(MagOutcome::Fused(record))
     }
 

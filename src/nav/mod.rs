@@ -152,6 +152,7 @@ use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::{
     GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
+use crate::zero_option::ZeroOption;
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
@@ -417,7 +418,7 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     imu_clock: StreamClock,
     gps_clock: StreamClock,
     mag_clock: StreamClock,
-    last_reset: Option<ResetRecord>,
+    last_reset: ZeroOption<ResetRecord>,
     valid_delay_updates: u32,
     /// IMU biases and their variances (accelerometer, gyroscope) kept
     /// through a reset: sensor properties, not lost with the clock.
@@ -425,8 +426,8 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// A magnetometer sample has reached the horizon EKF since the start.
     mag_at_horizon: bool,
     /// Whether the accepted fixes are geodetic (`Some(true)`) or NED.
-    geodetic_fixes: Option<bool>,
-    last_update: Option<DelayUpdate<T>>,
+    geodetic_fixes: ZeroOption<bool>,
+    last_update: ZeroOption<DelayUpdate<T>>,
     /// A fix's time and velocity waiting for the delay loop, and the IMU
     /// samples it has waited ([`DELAY_UPDATE_MAX_WAIT`]).
     pending_delay_fix: Option<(u64, Vector3<T>, u32)>,
@@ -455,7 +456,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// A navigator not configured yet: a `const` value the compiler builds,
     /// every buffer empty, so a `static` holding it is laid out by the
-    /// linker and costs no stack at all. It refuses every sample
+    /// linker and costs no stack at all. It is all zero bytes: a mutable
+    /// `static` of it goes to `.bss`, nothing of it in flash
+    /// (`tests/blank_bss.rs`). It refuses every sample
     /// ([`Error::NotConfigured`]), its estimates are `None` and its
     /// [`health`](Self::health) says [`AlignmentState::NotConfigured`]
     /// until [`configure`](Self::configure) succeeds.
@@ -508,12 +511,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         imu_clock: StreamClock::NEW,
         gps_clock: StreamClock::NEW,
         mag_clock: StreamClock::NEW,
-        last_reset: None,
+        last_reset: ZeroOption::None,
         valid_delay_updates: 0,
         retained_biases: None,
         mag_at_horizon: false,
-        geodetic_fixes: None,
-        last_update: None,
+        geodetic_fixes: ZeroOption::None,
+        last_update: ZeroOption::None,
         pending_delay_fix: None,
         present_accel: zeros_const(),
         refusals: NavRefusals::ZERO,
@@ -592,12 +595,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.imu_clock = StreamClock::default();
         self.gps_clock = StreamClock::default();
         self.mag_clock = StreamClock::default();
-        self.last_reset = None;
+        self.last_reset = ZeroOption::None;
         self.valid_delay_updates = 0;
         self.retained_biases = None;
         self.mag_at_horizon = false;
-        self.geodetic_fixes = None;
-        self.last_update = None;
+        self.geodetic_fixes = ZeroOption::None;
+        self.last_update = ZeroOption::None;
         self.pending_delay_fix = None;
         self.present_accel = Vector3::zeros();
         self.refusals = NavRefusals::default();
@@ -749,7 +752,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.mags_due = false;
         self.mags.clear();
         self.mag_spacing_us = 0;
-        self.last_reset = Some(ResetRecord {
+        self.last_reset = ZeroOption::Some(ResetRecord {
             t_us: self.imu_clock.last(),
             cause: ResetCause::Requested,
         });
@@ -757,11 +760,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.imu_clock = StreamClock::default();
         self.gps_clock = StreamClock::default();
         self.mag_clock = StreamClock::default();
-        self.last_update = None;
+        self.last_update = ZeroOption::None;
         self.pending_delay_fix = None;
         self.valid_delay_updates = 0;
         self.mag_at_horizon = false;
-        self.geodetic_fixes = None;
+        self.geodetic_fixes = ZeroOption::None;
         self.present_accel = Vector3::zeros();
     }
 
@@ -814,14 +817,14 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             position_valid: aligned && gps_recent && horizontal_std <= T::lit(MAX_POSITION_STD_M),
             delay_valid: !estimated
                 || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
-            last_reset: self.last_reset,
+            last_reset: self.last_reset.get(),
             refusals: self.refusals,
             ekf_refusals: self.ekf_refusals(),
             delay: DelayHealth {
                 estimated,
                 delay_s: self.delay_s(),
                 delay_std_s: self.delay_std_s(),
-                last_valid_axes: self.last_update.map(|u| u.axes.map(|a| a.valid)),
+                last_valid_axes: self.last_update.get().map(|u| u.axes.map(|a| a.valid)),
                 valid_updates: self.valid_delay_updates,
                 status: estimated.then(|| self.delay_loop.status()),
             },
@@ -1089,7 +1092,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 if update.axes.iter().any(|a| a.valid) {
                     self.valid_delay_updates = self.valid_delay_updates.saturating_add(1);
                 }
-                self.last_update = Some(update);
+                self.last_update = ZeroOption::Some(update);
             }
             Ok(None) => {}
             Err(_) => bump(&mut self.refusals.delay_loop_refused),
@@ -1134,7 +1137,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let gap = dt_us > max_step;
         if gap {
             bump(&mut self.refusals.imu_gap);
-            self.last_reset = Some(ResetRecord {
+            self.last_reset = ZeroOption::Some(ResetRecord {
                 t_us: Some(s.t_us),
                 cause: ResetCause::ImuGap,
             });
@@ -1229,7 +1232,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
                 reason: "beyond the plausible range",
             });
         }
-        let geodetic = check_position_kind(self.geodetic_fixes, &fix.position)
+        let geodetic = check_position_kind(self.geodetic_fixes.get(), &fix.position)
             .inspect_err(|_| bump(&mut self.refusals.gps_mixed_frames))?;
         let newest_imu = self.imu_clock.last();
         let max_jump = self.config.max_time_jump_us;
@@ -1257,13 +1260,13 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         if let Some(reset) = self.ekf.last_gps_reset()
             && resets_before != Some(reset)
         {
-            self.last_reset = Some(ResetRecord {
+            self.last_reset = ZeroOption::Some(ResetRecord {
                 t_us: self.imu_clock.last(),
                 cause: ResetCause::Gps(reset),
             });
         }
         self.gps_clock = clock;
-        self.geodetic_fixes = Some(geodetic);
+        self.geodetic_fixes = ZeroOption::Some(geodetic);
         if self.is_estimating() {
             // The loop's update waits for a lighter IMU sample (bounded
             // work per call); a fix still waiting goes first.
