@@ -13,6 +13,10 @@
 //! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # issue 11's delay suite
+//! cargo run --release --features sim --example reproduce -- --delay-suite --rows delay_ramp,gps_2hz \
+//!     --delay-rate-std 1 --delay-rate-time-constant 30 --json d.json      # rows with the drift-rate state
+//! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_low --seed 1 \
+//!     --csv target/low.csv                                                 # a row's run, per second
 //! ```
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
@@ -126,8 +130,9 @@ struct Args {
     /// A short run for CI and tests (2 seeds of 20 s, no plots unless --plots).
     #[arg(long)]
     quick: bool,
-    /// Also write each scenario's first-seed run as a CSV log under DIR/<scenario>-seed<S>/.
-    #[arg(long, value_name = "DIR")]
+    /// Also write each scenario's first-seed run as a CSV log under
+    /// DIR/<scenario>-seed<S>/; with --delay-trace, the trace's CSV file.
+    #[arg(long, value_name = "DIR|FILE")]
     csv: Option<PathBuf>,
     /// Start `proposed` and `aekf17` from the fixed 0.1 s instead of an
     /// offline calibration on a separate run (sec. 2.2.2).
@@ -147,6 +152,27 @@ struct Args {
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
     delay_suite: bool,
+    /// Write a per-second trace of the delay suite's row ROW (seed --seed,
+    /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
+    /// (a file here) [default: target/delay-trace/ROW-seedS.csv].
+    #[arg(long, value_name = "ROW")]
+    delay_trace: Option<String>,
+    /// With --delay-suite: only these rows (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
+    rows: Option<Vec<String>>,
+    /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
+    /// delay loop on, `GainFusionConfig::rate_std` in ms/s, in every row
+    /// [default: the loop's, off].
+    #[arg(long, value_name = "MS_PER_S")]
+    delay_rate_std: Option<f64>,
+    /// With --delay-suite or --delay-trace: `GainFusionConfig::rate_time_constant_s`, s, in
+    /// every row [default: the loop's].
+    #[arg(long, value_name = "S")]
+    delay_rate_time_constant: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
+    #[arg(long, value_name = "MS2_PER_S")]
+    delay_process_noise: Option<f64>,
     /// Run only the bound study instead of the tables: the bound with each
     /// difference to the estimators in turn, beside `oracle` and `proposed`.
     #[arg(long)]
@@ -1791,8 +1817,50 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
+    let tuning = delay_suite::LoopTuning {
+        rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
+        rate_time_constant_s: args.delay_rate_time_constant,
+        process_noise_ms2_per_s: args.delay_process_noise,
+    };
+    if let Some(row) = &args.delay_trace {
+        let path = args.csv.clone().unwrap_or_else(|| {
+            PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
+        });
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)?;
+        }
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        let Some(n) = delay_suite::write_trace(row, args.seed, tuning, &mut out)? else {
+            return Err(format!(
+                "--delay-trace: no navigator trace for {row:?} (rows: {})",
+                delay_suite::TRACE_ROWS.join(", ")
+            )
+            .into());
+        };
+        std::io::Write::flush(&mut out)?;
+        eprintln!("wrote {n} rows to {}", path.display());
+        return Ok(());
+    }
     if args.delay_suite {
-        let options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        let mut options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        options.rows = args
+            .rows
+            .as_ref()
+            .map(|names| {
+                names
+                    .iter()
+                    .map(|n| {
+                        delay_suite::row_name(n).ok_or_else(|| {
+                            format!(
+                                "--rows: no row {n:?} (rows: {})",
+                                delay_suite::ROW_NAMES.join(", ")
+                            )
+                        })
+                    })
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .transpose()?;
+        options.tuning = tuning;
         let rows = delay_suite::run(&options);
         if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent)?;
