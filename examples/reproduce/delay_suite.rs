@@ -16,12 +16,13 @@ use super::{
     CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, UNCALIBRATED_START, calibrate,
     ekf16_config, median, nav,
 };
-use delaynav::delay::{DelayLoopConfig, DelayStatus};
+use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig, DelayStatus};
 use delaynav::nav::{DelayCompensatedNav, DelayMode};
 use delaynav::sim::{
-    DelayProfile, DelayRamp, DelayStep, Scenario, SimConfig, SimEvent, Simulation,
+    DelayProfile, DelayRamp, DelayStep, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
 };
 use delaynav::{Aekf17Config, AugmentedEkf17, Navigator};
+use nalgebra::Vector3;
 use serde_json::{Value, json};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -692,25 +693,112 @@ fn status_name(status: DelayStatus<f64>) -> &'static str {
     }
 }
 
+/// What [`write_trace`] wrote and measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceSummary {
+    /// CSV rows written (one a second).
+    pub rows: usize,
+    /// Delay RMSE from 20 s at the suite's 10 ms spacing, ms, per estimate:
+    /// `navigator` (as the suite scores it), and with `compare` `oracle_accel`
+    /// and `true_accel`.
+    pub rmse_ms: Vec<(&'static str, f64)>,
+}
+
+/// Squared-error sum and count from [`SCORE_FROM_S`] of one estimate.
+#[derive(Debug, Default, Clone, Copy)]
+struct Score {
+    sum: f64,
+    n: usize,
+}
+
+impl Score {
+    fn add(&mut self, t_s: f64, error_s: f64) {
+        if t_s >= SCORE_FROM_S {
+            self.sum += error_s * error_s;
+            self.n += 1;
+        }
+    }
+
+    fn rmse_ms(self) -> f64 {
+        (self.sum / self.n as f64).sqrt() * 1e3
+    }
+}
+
+/// Two more delay loops beside the navigator's, configured as its loop and
+/// fed the same GPS fixes: one the `oracle` navigator's NED acceleration
+/// (the navigator in fixed mode, given the true start delay; its `a_fwd`
+/// when the accelerometer whitening is a pass-through, as here), one the
+/// measured specific force rotated with the true attitude, true bias
+/// removed, gravity added (the true acceleration plus the accelerometer's
+/// noise).
+struct Comparison {
+    oracle: DelayCompensatedNav<f64>,
+    oracle_loop: Box<DefaultDelayLoop<f64>>,
+    true_loop: Box<DefaultDelayLoop<f64>>,
+}
+
+impl Comparison {
+    fn new(config: &SimConfig, nav: &DelayCompensatedNav<f64>) -> Option<Self> {
+        let mode = DelayMode::Fixed {
+            delay_s: config.delay.initial_s,
+        };
+        let loop_config = *nav.delay_loop().config();
+        Some(Self {
+            oracle: DelayCompensatedNav::new(*super::nav(config, mode, None).config()).ok()?,
+            oracle_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
+            true_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
+        })
+    }
+
+    /// Refusals are the loops' business, as the navigator's.
+    fn feed(&mut self, event: &SimEvent) {
+        feed(&mut self.oracle, event);
+        match event {
+            SimEvent::Imu { sample, truth } => {
+                if let Some(a) = self.oracle.acceleration_ned_m_s2() {
+                    let _ = self.oracle_loop.push_imu(sample.t_us, a);
+                }
+                let gravity = Vector3::new(0.0, 0.0, STANDARD_GRAVITY);
+                let a = truth.attitude * (sample.accel_m_s2 - truth.accel_bias_m_s2) + gravity;
+                let _ = self.true_loop.push_imu(sample.t_us, a);
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = self.oracle_loop.push_gps_fix(fix);
+                let _ = self.true_loop.push_gps_fix(fix);
+            }
+            SimEvent::Mag(_) => {}
+        }
+    }
+}
+
 /// Runs the `proposed` navigator of row `name` on `seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's
 /// status, and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`.
 /// Delays are relative to the raw IMU (the loop's values plus the
-/// accelerometer whitening's group delay), as the suite scores them.
-/// Returns the rows written; `Ok(None)` when the row has no navigator trace
-/// or the navigator refuses its setup.
+/// accelerometer whitening's group delay), as the suite scores them. With
+/// `compare`, two more loops fed other accelerations ([`Comparison`]) add
+/// their estimates. `Ok(None)` when the row has no navigator trace or the
+/// navigator refuses its setup.
 pub fn write_trace(
     name: &str,
     seed: u64,
     tuning: LoopTuning,
+    compare: bool,
     out: &mut impl std::io::Write,
-) -> std::io::Result<Option<usize>> {
+) -> std::io::Result<Option<TraceSummary>> {
     let Some((config, setup)) = row_run(name, seed) else {
         return Ok(None);
     };
     let Some(mut nav) = proposed(&config, setup, tuning) else {
         return Ok(None);
+    };
+    let mut comparison = match compare {
+        true => match Comparison::new(&config, &nav) {
+            Some(c) => Some(c),
+            None => return Ok(None),
+        },
+        false => None,
     };
     let (group_delay_s, _) = nav.group_delays_s();
     write!(
@@ -723,22 +811,42 @@ pub fn write_trace(
             ",{axis}_valid,{axis}_peak_s,{axis}_peak_error_ms,{axis}_correlation,{axis}_accel_variance_m2_s4"
         )?;
     }
+    if compare {
+        write!(out, ",oracle_accel_estimate_s,true_accel_estimate_s")?;
+    }
     writeln!(out)?;
-    let mut written = 0;
+    let mut rows = 0;
+    let mut scores = [Score::default(); 3];
     for event in &events(&config) {
         feed(&mut nav, event);
+        if let Some(c) = &mut comparison {
+            c.feed(event);
+        }
         let SimEvent::Imu { truth, .. } = event else {
             continue;
         };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
+        }
+        let t_s = truth.t_us as f64 * 1e-6;
+        let truth_s = truth.gps_delay_s;
+        let others = comparison.as_ref().map(|c| {
+            [
+                c.oracle_loop.delay_s() + group_delay_s,
+                c.true_loop.delay_s() + group_delay_s,
+            ]
+        });
+        let estimate_s = nav.estimate().and_then(|e| e.delay_s).unwrap_or(f64::NAN);
+        scores[0].add(t_s, estimate_s - truth_s);
+        for (score, other) in scores[1..].iter_mut().zip(others.iter().flatten()) {
+            score.add(t_s, other - truth_s);
+        }
         if !truth.t_us.is_multiple_of(CSV_STEP_US) {
             continue;
         }
-        let truth_s = truth.gps_delay_s;
-        let estimate_s = nav.delay_s();
         write!(
             out,
-            "{:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{}",
-            truth.t_us as f64 * 1e-6,
+            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{}",
             nav.delay_std_s(),
             (estimate_s - truth_s) * 1e3,
             status_name(nav.delay_loop().status()),
@@ -760,8 +868,20 @@ pub fn write_trace(
             }
             None => write!(out, "{}", ",".repeat(1 + 5 * AXIS_NAMES.len()))?,
         }
+        if let Some([oracle_s, true_s]) = others {
+            write!(out, ",{oracle_s:.6},{true_s:.6}")?;
+        }
         writeln!(out)?;
-        written += 1;
+        rows += 1;
     }
-    Ok(Some(written))
+    let names = ["navigator", "oracle_accel", "true_accel"];
+    let kept = if compare { 3 } else { 1 };
+    Ok(Some(TraceSummary {
+        rows,
+        rmse_ms: names
+            .into_iter()
+            .zip(scores.map(Score::rmse_ms))
+            .take(kept)
+            .collect(),
+    }))
 }

@@ -157,6 +157,12 @@ struct Args {
     /// (a file here) [default: target/delay-trace/ROW-seedS.csv].
     #[arg(long, value_name = "ROW")]
     delay_trace: Option<String>,
+    /// With --delay-trace: two more delay loops beside the navigator's, fed
+    /// the oracle navigator's acceleration and the true acceleration plus
+    /// the accelerometer's noise (their estimates as two more columns, the
+    /// three RMSEs from 20 s printed).
+    #[arg(long)]
+    compare_accel: bool,
     /// With --delay-suite: only these rows (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
     rows: Option<Vec<String>>,
@@ -1830,7 +1836,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             std::fs::create_dir_all(parent)?;
         }
         let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
-        let Some(n) = delay_suite::write_trace(row, args.seed, tuning, &mut out)? else {
+        let summary =
+            delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut out)?;
+        let Some(summary) = summary else {
             return Err(format!(
                 "--delay-trace: no navigator trace for {row:?} (rows: {})",
                 delay_suite::TRACE_ROWS.join(", ")
@@ -1838,7 +1846,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .into());
         };
         std::io::Write::flush(&mut out)?;
-        eprintln!("wrote {n} rows to {}", path.display());
+        for (estimate, rmse_ms) in &summary.rmse_ms {
+            eprintln!(
+                "{row} seed {}: {estimate} delay RMSE from 20 s {rmse_ms:.4} ms",
+                args.seed
+            );
+        }
+        eprintln!("wrote {} rows to {}", summary.rows, path.display());
         return Ok(());
     }
     if args.delay_suite {
