@@ -1783,6 +1783,35 @@ impl Progress {
     }
 }
 
+/// The delay loop's changes that `--delay-rate-std`, `--delay-rate-time-constant`
+/// and `--delay-process-noise` ask for.
+fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
+    delay_suite::LoopTuning {
+        rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
+        rate_time_constant_s: args.delay_rate_time_constant,
+        process_noise_ms2_per_s: args.delay_process_noise,
+    }
+}
+
+/// The delay suite's options: `seeds_n` seeds from `--seed`, `--rows`, the
+/// loop's tuning; an error names a row the suite does not have.
+fn suite_options(args: &Args, seeds_n: u64) -> Result<delay_suite::SuiteOptions, String> {
+    let mut options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+    if let Some(names) = &args.rows {
+        let rows = names.iter().map(|n| {
+            delay_suite::row_name(n).ok_or_else(|| {
+                format!(
+                    "--rows: no row {n:?} (rows: {})",
+                    delay_suite::ROW_NAMES.join(", ")
+                )
+            })
+        });
+        options.rows = Some(rows.collect::<Result<_, _>>()?);
+    }
+    options.tuning = delay_tuning(args);
+    Ok(options)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     if let Some(rate) = args.filter_rate_hz {
@@ -1823,11 +1852,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
-    let tuning = delay_suite::LoopTuning {
-        rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
-        rate_time_constant_s: args.delay_rate_time_constant,
-        process_noise_ms2_per_s: args.delay_process_noise,
-    };
+    let tuning = delay_tuning(&args);
     if let Some(row) = &args.delay_trace {
         let path = args.csv.clone().unwrap_or_else(|| {
             PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
@@ -1856,25 +1881,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     if args.delay_suite {
-        let mut options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
-        options.rows = args
-            .rows
-            .as_ref()
-            .map(|names| {
-                names
-                    .iter()
-                    .map(|n| {
-                        delay_suite::row_name(n).ok_or_else(|| {
-                            format!(
-                                "--rows: no row {n:?} (rows: {})",
-                                delay_suite::ROW_NAMES.join(", ")
-                            )
-                        })
-                    })
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .transpose()?;
-        options.tuning = tuning;
+        let options = suite_options(&args, seeds_n)?;
         let rows = delay_suite::run(&options);
         if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent)?;
@@ -2000,5 +2007,98 @@ mod json_contract {
             assert!(entry.contains_key("nees_mean"), "{name}.nees_mean");
         }
         assert!(estimators["proposed_f32"]["nees_mean"].is_number());
+    }
+}
+
+#[cfg(test)]
+mod delay_flags {
+    use super::*;
+
+    fn parse(flags: &[&str]) -> Args {
+        Args::try_parse_from(std::iter::once("reproduce").chain(flags.iter().copied()))
+            .expect("the flags parse")
+    }
+
+    /// `--rows`, `--delay-rate-std` (ms/s), `--delay-rate-time-constant` and
+    /// `--delay-process-noise` reach the suite's options and its JSON; a
+    /// row the suite does not have is refused with the list.
+    #[test]
+    fn suite_flags_reach_the_options() {
+        let args = parse(&[
+            "--delay-suite",
+            "--rows",
+            "delay_step,aekf17_hover",
+            "--seed",
+            "3",
+            "--delay-rate-std",
+            "2",
+            "--delay-rate-time-constant",
+            "300",
+            "--delay-process-noise",
+            "0.5",
+        ]);
+        let options = suite_options(&args, 2).expect("known rows");
+        assert_eq!(options.rows, Some(vec!["delay_step", "aekf17_hover"]));
+        assert_eq!(options.seeds, [3, 4]);
+        let tuning = options.tuning;
+        assert!((tuning.rate_std.expect("set") - 2e-3).abs() < 1e-12);
+        assert_eq!(tuning.rate_time_constant_s, Some(300.0));
+        assert_eq!(tuning.process_noise_ms2_per_s, Some(0.5));
+        let json = delay_suite::to_json(&[], &options);
+        assert_eq!(json["loop_tuning"]["rate_time_constant_s"], 300.0);
+        let defaults = suite_options(&parse(&["--delay-suite"]), 5).expect("no rows named");
+        assert_eq!(defaults.rows, None);
+        assert_eq!(defaults.tuning, delay_suite::LoopTuning::default());
+        let bad = suite_options(&parse(&["--delay-suite", "--rows", "cold_start"]), 1);
+        assert!(bad.is_err_and(|e| e.contains("cold_start_low")));
+    }
+
+    /// `--delay-trace ROW --compare-accel`: one CSV row a second with the
+    /// two comparison columns, and the navigator's RMSE the suite's row
+    /// measures on that seed with the same tuning.
+    #[test]
+    fn trace_agrees_with_the_suite() {
+        let args = parse(&[
+            "--delay-trace",
+            "cold_start_high",
+            "--compare-accel",
+            "--seed",
+            "2",
+            "--delay-rate-std",
+            "1",
+        ]);
+        let tuning = delay_tuning(&args);
+        let row = args.delay_trace.as_deref().expect("a row");
+        let mut csv = Vec::new();
+        let summary =
+            delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut csv)
+                .expect("writes to memory")
+                .expect("a navigator row");
+        let text = String::from_utf8(csv).expect("UTF-8");
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(summary.rows, 61);
+        assert_eq!(lines.len(), 62);
+        let columns = lines[0].split(',').count();
+        assert_eq!(columns, 7 + 3 * 5 + 2);
+        assert!(lines.iter().all(|l| l.split(',').count() == columns));
+        assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
+        let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();
+        assert_eq!(names, ["navigator", "oracle_accel", "true_accel"]);
+        assert!(
+            summary
+                .rmse_ms
+                .iter()
+                .all(|(_, x)| x.is_finite() && *x > 0.0)
+        );
+        let options = delay_suite::SuiteOptions {
+            seeds: vec![2],
+            coverage_seeds: vec![2],
+            rows: Some(vec!["cold_start_high"]),
+            tuning,
+        };
+        let suite = delay_suite::run(&options)[0].measured.expect("measured");
+        assert_eq!(summary.rmse_ms[0].1, suite);
+        let none = delay_suite::write_trace("sigma_coverage", 1, tuning, false, &mut Vec::new());
+        assert!(none.expect("nothing written").is_none());
     }
 }
