@@ -641,13 +641,8 @@ fn sigma_coverage_row(options: &SuiteOptions) -> Row {
 /// sigma: |final error| / final sigma (median).
 fn aekf17_hover_row(options: &SuiteOptions) -> Row {
     let ratios = per_seed(&options.seeds, |seed| {
-        let config = hover(sim(Scenario::High, seed, DelayProfile::constant(0.2)));
-        let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
-        aekf.initial_delay_s = 0.2;
-        let t = trace(
-            AugmentedEkf17::new(aekf).expect("valid Aekf17 config"),
-            &events(&config),
-        );
+        let (config, aekf) = aekf17_hover(seed, &HoverSetup::default());
+        let t = trace(aekf, &events(&config));
         let k = t.t_s.len().checked_sub(1)?;
         Some((t.estimate_s[k] - t.truth_s[k]).abs() / t.std_s[k])
     });
@@ -661,6 +656,98 @@ fn aekf17_hover_row(options: &SuiteOptions) -> Row {
         measured,
         limit: Limit::Max(3.0),
     }
+}
+
+/// Changes to the `aekf17_hover` row for [`write_hover_trace`] (`None`: the
+/// row's).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct HoverSetup {
+    /// Length of the hover, s [default: 60].
+    pub duration_s: Option<f64>,
+    /// `Aekf17Config::delay_random_walk`.
+    pub delay_random_walk: Option<f64>,
+    /// `Aekf17Config::accel_smoothing_s`.
+    pub accel_smoothing_s: Option<f64>,
+}
+
+/// The run and the filter of the `aekf17_hover` row on `seed`.
+fn aekf17_hover(seed: u64, setup: &HoverSetup) -> (SimConfig, AugmentedEkf17<f64>) {
+    let mut config = hover(sim(Scenario::High, seed, DelayProfile::constant(0.2)));
+    if let Some(duration_s) = setup.duration_s {
+        config.duration_s = duration_s;
+    }
+    let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
+    aekf.initial_delay_s = 0.2;
+    if let Some(q) = setup.delay_random_walk {
+        aekf.delay_random_walk = q;
+    }
+    if let Some(t) = setup.accel_smoothing_s {
+        aekf.accel_smoothing_s = t;
+    }
+    let filter = AugmentedEkf17::new(aekf).expect("valid Aekf17 config");
+    (config, filter)
+}
+
+/// The end of [`write_hover_trace`]'s run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HoverSummary {
+    /// CSV rows written (one a second).
+    pub rows: usize,
+    /// Delay estimate at the last 10 ms point, s.
+    pub estimate_s: f64,
+    /// Its sigma, s.
+    pub sigma_s: f64,
+    /// |error| / sigma there (the row's figure for this seed).
+    pub ratio: f64,
+    /// Times the filter clamped the delay into its range.
+    pub clamps: u32,
+}
+
+/// Runs AEKF17 on the `aekf17_hover` row's run of `seed`, changed by
+/// `setup`, and writes every second the true delay, the estimate, its
+/// sigma, |error| / sigma and the clamp count as CSV to `out`.
+pub fn write_hover_trace(
+    seed: u64,
+    setup: &HoverSetup,
+    out: &mut impl std::io::Write,
+) -> std::io::Result<HoverSummary> {
+    let (config, mut aekf) = aekf17_hover(seed, setup);
+    writeln!(out, "t_s,truth_s,estimate_s,sigma_s,ratio,clamps")?;
+    let mut summary = HoverSummary {
+        rows: 0,
+        estimate_s: f64::NAN,
+        sigma_s: f64::NAN,
+        ratio: f64::NAN,
+        clamps: 0,
+    };
+    for event in &events(&config) {
+        feed(&mut aekf, event);
+        let SimEvent::Imu { truth, .. } = event else {
+            continue;
+        };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
+        }
+        let est = aekf.estimate();
+        summary.estimate_s = est.and_then(|e| e.delay_s).unwrap_or(f64::NAN);
+        summary.sigma_s = est.and_then(|e| e.delay_std_s).unwrap_or(f64::NAN);
+        summary.ratio = (summary.estimate_s - truth.gps_delay_s).abs() / summary.sigma_s;
+        summary.clamps = aekf.delay_clamps();
+        if truth.t_us.is_multiple_of(CSV_STEP_US) {
+            writeln!(
+                out,
+                "{:.1},{:.6},{:.6},{:.6},{:.4},{}",
+                truth.t_us as f64 * 1e-6,
+                truth.gps_delay_s,
+                summary.estimate_s,
+                summary.sigma_s,
+                summary.ratio,
+                summary.clamps,
+            )?;
+            summary.rows += 1;
+        }
+    }
+    Ok(summary)
 }
 
 /// The suite's JSON document.
@@ -793,13 +880,13 @@ pub fn write_trace(
     let Some(mut nav) = proposed(&config, setup, tuning) else {
         return Ok(None);
     };
-    let mut comparison = match compare {
-        true => match Comparison::new(&config, &nav) {
-            Some(c) => Some(c),
-            None => return Ok(None),
-        },
-        false => None,
-    };
+    let mut comparison = None;
+    if compare {
+        let Some(c) = Comparison::new(&config, &nav) else {
+            return Ok(None);
+        };
+        comparison = Some(c);
+    }
     let (group_delay_s, _) = nav.group_delays_s();
     write!(
         out,

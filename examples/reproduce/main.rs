@@ -154,9 +154,17 @@ struct Args {
     delay_suite: bool,
     /// Write a per-second trace of the delay suite's row ROW (seed --seed,
     /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
-    /// (a file here) [default: target/delay-trace/ROW-seedS.csv].
+    /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
+    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length).
     #[arg(long, value_name = "ROW")]
     delay_trace: Option<String>,
+    /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
+    #[arg(long, value_name = "S_PER_SQRT_S")]
+    aekf17_delay_random_walk: Option<f64>,
+    /// With --delay-trace aekf17_hover: AEKF17's `accel_smoothing_s` (0: the
+    /// paper's last sample) [default: its own].
+    #[arg(long, value_name = "S")]
+    aekf17_accel_smoothing: Option<f64>,
     /// With --delay-trace: two more delay loops beside the navigator's, fed
     /// the oracle navigator's acceleration and the true acceleration plus
     /// the accelerometer's noise (their estimates as two more columns, the
@@ -1783,6 +1791,18 @@ impl Progress {
     }
 }
 
+/// Where `--delay-trace` writes (its directory created).
+fn trace_path(args: &Args) -> std::io::Result<PathBuf> {
+    let row = args.delay_trace.as_deref().unwrap_or("trace");
+    let path = args.csv.clone().unwrap_or_else(|| {
+        PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
+    });
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)?;
+    }
+    Ok(path)
+}
+
 /// The delay loop's changes that `--delay-rate-std`, `--delay-rate-time-constant`
 /// and `--delay-process-noise` ask for.
 fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
@@ -1853,13 +1873,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
     let tuning = delay_tuning(&args);
+    if args.delay_trace.as_deref() == Some("aekf17_hover") {
+        let setup = delay_suite::HoverSetup {
+            duration_s: args.duration,
+            delay_random_walk: args.aekf17_delay_random_walk,
+            accel_smoothing_s: args.aekf17_accel_smoothing,
+        };
+        let path = trace_path(&args)?;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        let end = delay_suite::write_hover_trace(args.seed, &setup, &mut out)?;
+        std::io::Write::flush(&mut out)?;
+        eprintln!(
+            "aekf17_hover seed {}: final estimate {:.4} s, sigma {:.4} s, ratio {:.4}, {} clamps",
+            args.seed, end.estimate_s, end.sigma_s, end.ratio, end.clamps
+        );
+        eprintln!("wrote {} rows to {}", end.rows, path.display());
+        return Ok(());
+    }
     if let Some(row) = &args.delay_trace {
-        let path = args.csv.clone().unwrap_or_else(|| {
-            PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
-        });
-        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent)?;
-        }
+        let path = trace_path(&args)?;
         let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
         let summary =
             delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut out)?;
@@ -2100,5 +2132,39 @@ mod delay_flags {
         assert_eq!(summary.rmse_ms[0].1, suite);
         let none = delay_suite::write_trace("sigma_coverage", 1, tuning, false, &mut Vec::new());
         assert!(none.expect("nothing written").is_none());
+    }
+
+    /// `--delay-trace aekf17_hover`: the flags reach the hover's setup, and
+    /// the default trace ends on the suite row's figure for that seed.
+    #[test]
+    fn hover_trace_agrees_with_the_suite() {
+        let args = parse(&[
+            "--delay-trace",
+            "aekf17_hover",
+            "--duration",
+            "30",
+            "--aekf17-delay-random-walk",
+            "0",
+            "--aekf17-accel-smoothing",
+            "0",
+        ]);
+        assert_eq!(args.duration, Some(30.0));
+        assert_eq!(args.aekf17_delay_random_walk, Some(0.0));
+        assert_eq!(args.aekf17_accel_smoothing, Some(0.0));
+        let setup = delay_suite::HoverSetup::default();
+        let mut csv = Vec::new();
+        let end = delay_suite::write_hover_trace(1, &setup, &mut csv).expect("writes to memory");
+        let text = String::from_utf8(csv).expect("UTF-8");
+        assert_eq!(end.rows, 61);
+        assert_eq!(text.lines().count(), 62);
+        assert!(end.ratio.is_finite() && end.sigma_s > 0.0);
+        let options = delay_suite::SuiteOptions {
+            seeds: vec![1],
+            coverage_seeds: vec![1],
+            rows: Some(vec!["aekf17_hover"]),
+            tuning: delay_suite::LoopTuning::default(),
+        };
+        let suite = delay_suite::run(&options)[0].measured.expect("measured");
+        assert_eq!(end.ratio, suite);
     }
 }
