@@ -860,7 +860,7 @@ impl Comparison {
 
 /// Runs the `proposed` navigator of row `name` on `seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's
-/// status, and the last delay update's axes (valid flag, window peak, peak
+/// drift-rate estimate and status, and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`.
 /// Delays are relative to the raw IMU (the loop's values plus the
 /// accelerometer whitening's group delay), as the suite scores them. With
@@ -890,7 +890,7 @@ pub fn write_trace(
     let (group_delay_s, _) = nav.group_delays_s();
     write!(
         out,
-        "t_s,truth_s,estimate_s,sigma_s,error_ms,status,update_t_s"
+        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,update_t_s"
     )?;
     for axis in AXIS_NAMES {
         write!(
@@ -933,9 +933,10 @@ pub fn write_trace(
         }
         write!(
             out,
-            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{}",
+            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{:.4},{}",
             nav.delay_std_s(),
             (estimate_s - truth_s) * 1e3,
+            nav.delay_loop().delay_rate() * 1e3,
             status_name(nav.delay_loop().status()),
         )?;
         match nav.last_delay_update() {
