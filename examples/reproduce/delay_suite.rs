@@ -831,7 +831,7 @@ impl Comparison {
         };
         let loop_config = *nav.delay_loop().config();
         Some(Self {
-            oracle: DelayCompensatedNav::new(*super::nav(config, mode, None).config()).ok()?,
+            oracle: super::nav(config, mode, None),
             oracle_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
             true_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
         })
