@@ -7,7 +7,7 @@
 #[path = "../examples/reproduce/main.rs"]
 mod reproduce;
 
-use reproduce::delay_suite::{SuiteOptions, run, to_json};
+use reproduce::delay_suite::{LoopTuning, SuiteOptions, run, to_json};
 
 const ROWS: [&str; 4] = [
     "delay_step",
@@ -22,6 +22,7 @@ fn shortened_suite_writes_the_issue_rows() {
         seeds: vec![1],
         coverage_seeds: vec![1],
         rows: Some(ROWS.to_vec()),
+        tuning: LoopTuning::default(),
     };
     let rows = run(&options);
     let json = to_json(&rows, &options);

@@ -16,12 +16,13 @@ use super::{
     CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, UNCALIBRATED_START, calibrate,
     ekf16_config, median, nav,
 };
-use delaynav::delay::DelayStatus;
+use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig, DelayStatus};
 use delaynav::nav::{DelayCompensatedNav, DelayMode};
 use delaynav::sim::{
-    DelayProfile, DelayRamp, DelayStep, Scenario, SimConfig, SimEvent, Simulation,
+    DelayProfile, DelayRamp, DelayStep, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
 };
 use delaynav::{Aekf17Config, AugmentedEkf17, Navigator};
+use nalgebra::Vector3;
 use serde_json::{Value, json};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -30,6 +31,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 const RUN_S: f64 = 60.0;
 /// Scored from here, s (the simulator's trajectories carry little motion before 15 s).
 const SCORE_FROM_S: f64 = 20.0;
+/// When `delay_step`'s delay steps, s.
+const STEP_AT_S: f64 = 20.0;
 /// Spacing of the trace points, us.
 const TRACE_STEP_US: u64 = 10_000;
 /// Worker threads (the machine's two cores).
@@ -100,6 +103,75 @@ pub struct SuiteOptions {
     pub coverage_seeds: Vec<u64>,
     /// Only these rows (all when `None`).
     pub rows: Option<Vec<&'static str>>,
+    /// Changes to the delay loop's defaults, applied to the `proposed`
+    /// navigator of every row.
+    pub tuning: LoopTuning,
+}
+
+/// The suite's rows, in the order they run.
+pub const ROW_NAMES: [&str; 11] = [
+    "cold_start_low",
+    "cold_start_high",
+    "delay_step",
+    "delay_ramp",
+    "delay_jitter",
+    "gps_2hz",
+    "gps_1hz",
+    "negative_delay",
+    "out_of_range_reported",
+    "sigma_coverage",
+    "aekf17_hover",
+];
+
+/// The rows [`write_trace`] can trace (the `proposed` navigator on one run).
+pub const TRACE_ROWS: [&str; 9] = [
+    "cold_start_low",
+    "cold_start_high",
+    "delay_step",
+    "delay_ramp",
+    "delay_jitter",
+    "gps_2hz",
+    "gps_1hz",
+    "negative_delay",
+    "out_of_range_reported",
+];
+
+/// The row named `name` (its static name), `None` when the suite has none.
+pub fn row_name(name: &str) -> Option<&'static str> {
+    ROW_NAMES.iter().copied().find(|&n| n == name)
+}
+
+/// Changes to the delay loop's defaults (`None`: the default).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LoopTuning {
+    /// [`GainFusionConfig::rate_std`](delaynav::delay::GainFusionConfig::rate_std), s/s.
+    pub rate_std: Option<f64>,
+    /// [`GainFusionConfig::rate_time_constant_s`](delaynav::delay::GainFusionConfig::rate_time_constant_s), s.
+    pub rate_time_constant_s: Option<f64>,
+    /// [`DelayLoopConfig::process_noise_ms2_per_s`], ms^2/s.
+    pub process_noise_ms2_per_s: Option<f64>,
+}
+
+impl LoopTuning {
+    fn apply(self, config: &mut DelayLoopConfig<f64>) {
+        if let Some(rate_std) = self.rate_std {
+            config.fusion.rate_std = rate_std;
+        }
+        if let Some(t) = self.rate_time_constant_s {
+            config.fusion.rate_time_constant_s = t;
+        }
+        if let Some(q) = self.process_noise_ms2_per_s {
+            config.process_noise_ms2_per_s = q;
+        }
+    }
+
+    fn to_json(self) -> Value {
+        json!({
+            "rate_std_s_per_s": self.rate_std,
+            "rate_time_constant_s": self.rate_time_constant_s,
+            "process_noise_ms2_per_s": self.process_noise_ms2_per_s,
+        })
+    }
 }
 
 impl SuiteOptions {
@@ -109,6 +181,7 @@ impl SuiteOptions {
             seeds: (first..first + seeds).collect(),
             coverage_seeds: (first..first + 20).collect(),
             rows: None,
+            tuning: LoopTuning::default(),
         }
     }
 
@@ -284,8 +357,17 @@ const COLD: NavSetup = NavSetup {
     gps_rate_hz: None,
 };
 
+const CALIBRATED: NavSetup = NavSetup {
+    calibrated: true,
+    ..COLD
+};
+
 /// The `proposed` navigator of a row; `None` when it refuses the setup.
-fn proposed(config: &SimConfig, setup: NavSetup) -> Option<DelayCompensatedNav<f64>> {
+fn proposed(
+    config: &SimConfig,
+    setup: NavSetup,
+    tuning: LoopTuning,
+) -> Option<DelayCompensatedNav<f64>> {
     let start = if setup.calibrated {
         calibrated_start(config)
     } else {
@@ -302,23 +384,83 @@ fn proposed(config: &SimConfig, setup: NavSetup) -> Option<DelayCompensatedNav<f
         nav_config.delay_loop.fusion.delay_min_s = min;
         nav_config.delay_loop.fusion.delay_max_s = max;
     }
+    tuning.apply(&mut nav_config.delay_loop);
     DelayCompensatedNav::new(nav_config).ok()
 }
 
-/// Delay traces of the `proposed` navigator on every seed; `None` when it
-/// refuses the setup.
-fn proposed_traces(
-    seeds: &[u64],
-    config: impl Fn(u64) -> SimConfig + Sync,
-    setup: NavSetup,
-) -> Option<Vec<DelayTrace>> {
+/// The run and the navigator setup of the `proposed` row `name` on `seed`;
+/// `None` for `sigma_coverage` (two scenarios) and `aekf17_hover` (not the
+/// navigator), and for names the suite does not have.
+fn row_run(name: &str, seed: u64) -> Option<(SimConfig, NavSetup)> {
+    let constant = |scenario, delay_s| sim(scenario, seed, DelayProfile::constant(delay_s));
+    let high = |profile| sim(Scenario::High, seed, profile);
+    Some(match name {
+        "cold_start_low" => (constant(Scenario::Low, 0.2), COLD),
+        "cold_start_high" => (constant(Scenario::High, 0.2), COLD),
+        "delay_step" => {
+            let profile = DelayProfile {
+                steps: vec![DelayStep {
+                    at_s: STEP_AT_S,
+                    change_s: 0.15,
+                }],
+                ..DelayProfile::constant(0.2)
+            };
+            (high(profile), CALIBRATED)
+        }
+        "delay_ramp" => {
+            let profile = DelayProfile {
+                ramps: vec![DelayRamp {
+                    start_s: 0.0,
+                    duration_s: RUN_S,
+                    change_s: 0.06,
+                }],
+                ..DelayProfile::constant(0.2)
+            };
+            (high(profile), COLD)
+        }
+        "delay_jitter" => {
+            let profile = DelayProfile {
+                jitter_uniform_half_width_s: 0.020,
+                ..DelayProfile::constant(0.2)
+            };
+            (high(profile), COLD)
+        }
+        "gps_2hz" | "gps_1hz" => {
+            let rate_hz = if name == "gps_2hz" { 2.0 } else { 1.0 };
+            let setup = NavSetup {
+                gps_rate_hz: Some(rate_hz),
+                ..COLD
+            };
+            (with_gps_rate(constant(Scenario::High, 0.2), rate_hz), setup)
+        }
+        "negative_delay" => {
+            let setup = NavSetup {
+                range_s: Some((-0.5, 0.6)),
+                ..COLD
+            };
+            (constant(Scenario::High, -0.15), setup)
+        }
+        "out_of_range_reported" => (constant(Scenario::High, -0.15), COLD),
+        _ => return None,
+    })
+}
+
+/// Delay traces of the `proposed` navigator of row `name` on every seed;
+/// `None` when it refuses the setup.
+fn row_traces(name: &str, seeds: &[u64], tuning: LoopTuning) -> Option<Vec<DelayTrace>> {
     per_seed(seeds, |seed| {
-        let config = config(seed);
-        let estimator = proposed(&config, setup)?;
-        Some(trace(estimator, &events(&config)))
+        let (config, setup) = row_run(name, seed)?;
+        proposed_trace(&config, setup, tuning)
     })
     .into_iter()
     .collect()
+}
+
+/// The delay trace of the `proposed` navigator on `config`'s run; `None`
+/// when it refuses the setup.
+fn proposed_trace(config: &SimConfig, setup: NavSetup, tuning: LoopTuning) -> Option<DelayTrace> {
+    let estimator = proposed(config, setup, tuning)?;
+    Some(trace(estimator, &events(config)))
 }
 
 /// Median over the seeds of the delay RMSE from 20 s, ms.
@@ -342,12 +484,10 @@ fn median_with_infinity(xs: Vec<f64>) -> f64 {
 fn rmse_row(
     name: &'static str,
     options: &SuiteOptions,
-    config: impl Fn(u64) -> SimConfig + Sync,
-    setup: NavSetup,
     limit_ms: f64,
     criterion: &'static str,
 ) -> Row {
-    let measured = proposed_traces(&options.seeds, config, setup).map(|t| median_rmse_ms(&t));
+    let measured = row_traces(name, &options.seeds, options.tuning).map(|t| median_rmse_ms(&t));
     Row {
         name,
         criterion,
@@ -382,116 +522,55 @@ pub fn run(options: &SuiteOptions) -> Vec<Row> {
         );
         rows.push(row);
     };
-    let constant =
-        |scenario, delay_s| move |seed| sim(scenario, seed, DelayProfile::constant(delay_s));
     let rmse = "delay RMSE from 20 s, ms (median over seeds)";
-    for (name, scenario, limit_ms) in [
-        ("cold_start_low", Scenario::Low, 6.0),
-        ("cold_start_high", Scenario::High, 4.0),
-    ] {
-        if options.wants(name) {
-            let config = constant(scenario, 0.2);
-            push(rmse_row(name, options, config, COLD, limit_ms, rmse));
+    for name in ROW_NAMES {
+        if !options.wants(name) {
+            continue;
         }
-    }
-    if options.wants("delay_step") {
-        let step = |seed| {
-            let profile = DelayProfile {
-                steps: vec![DelayStep {
-                    at_s: 20.0,
-                    change_s: 0.15,
-                }],
-                ..DelayProfile::constant(0.2)
-            };
-            sim(Scenario::High, seed, profile)
-        };
-        let setup = NavSetup {
-            calibrated: true,
-            range_s: None,
-            gps_rate_hz: None,
-        };
-        let measured = proposed_traces(&options.seeds, step, setup).map(|traces| {
-            median_with_infinity(traces.iter().map(|t| t.settle_after(20.0, 0.010)).collect())
+        push(match name {
+            "cold_start_low" => rmse_row(name, options, 6.0, rmse),
+            "cold_start_high" => rmse_row(name, options, 4.0, rmse),
+            "delay_step" => delay_step_row(options),
+            "delay_ramp" => rmse_row(name, options, 10.0, rmse),
+            "delay_jitter" => rmse_row(
+                name,
+                options,
+                5.0,
+                "delay RMSE against 0.2 s from 20 s, ms (median)",
+            ),
+            "gps_2hz" => rmse_row(name, options, 20.0, rmse),
+            "gps_1hz" => rmse_row(name, options, 40.0, rmse),
+            "negative_delay" => rmse_row(
+                name,
+                options,
+                10.0,
+                "delay RMSE from 20 s, true -0.15 s, range -0.5..0.6 s, ms (median)",
+            ),
+            "out_of_range_reported" => out_of_range_row(options),
+            "sigma_coverage" => sigma_coverage_row(options),
+            _ => aekf17_hover_row(options),
         });
-        push(Row {
-            name: "delay_step",
-            criterion: "s after the 0.2 -> 0.35 s step at 20 s until the error stays <= 10 ms (median)",
-            measured,
-            limit: Limit::Max(8.0),
-        });
-    }
-    if options.wants("delay_ramp") {
-        let ramp = |seed| {
-            let profile = DelayProfile {
-                ramps: vec![DelayRamp {
-                    start_s: 0.0,
-                    duration_s: RUN_S,
-                    change_s: 0.06,
-                }],
-                ..DelayProfile::constant(0.2)
-            };
-            sim(Scenario::High, seed, profile)
-        };
-        push(rmse_row("delay_ramp", options, ramp, COLD, 10.0, rmse));
-    }
-    if options.wants("delay_jitter") {
-        let jitter = |seed| {
-            let profile = DelayProfile {
-                jitter_uniform_half_width_s: 0.020,
-                ..DelayProfile::constant(0.2)
-            };
-            sim(Scenario::High, seed, profile)
-        };
-        let criterion = "delay RMSE against 0.2 s from 20 s, ms (median)";
-        push(rmse_row(
-            "delay_jitter",
-            options,
-            jitter,
-            COLD,
-            5.0,
-            criterion,
-        ));
-    }
-    for (name, rate_hz, limit_ms) in [("gps_2hz", 2.0, 20.0), ("gps_1hz", 1.0, 40.0)] {
-        if options.wants(name) {
-            let config = move |seed| {
-                with_gps_rate(
-                    sim(Scenario::High, seed, DelayProfile::constant(0.2)),
-                    rate_hz,
-                )
-            };
-            let setup = NavSetup {
-                gps_rate_hz: Some(rate_hz),
-                ..COLD
-            };
-            push(rmse_row(name, options, config, setup, limit_ms, rmse));
-        }
-    }
-    if options.wants("negative_delay") {
-        let setup = NavSetup {
-            calibrated: false,
-            range_s: Some((-0.5, 0.6)),
-            gps_rate_hz: None,
-        };
-        push(rmse_row(
-            "negative_delay",
-            options,
-            constant(Scenario::High, -0.15),
-            setup,
-            10.0,
-            "delay RMSE from 20 s, true -0.15 s, range -0.5..0.6 s, ms (median)",
-        ));
-    }
-    if options.wants("out_of_range_reported") {
-        push(out_of_range_row(options));
-    }
-    if options.wants("sigma_coverage") {
-        push(sigma_coverage_row(options));
-    }
-    if options.wants("aekf17_hover") {
-        push(aekf17_hover_row(options));
     }
     rows
+}
+
+/// High, calibrated start, 0.2 -> 0.35 s at 20 s: seconds after the step
+/// until the error stays within 10 ms (median; infinite when never).
+fn delay_step_row(options: &SuiteOptions) -> Row {
+    let measured = row_traces("delay_step", &options.seeds, options.tuning).map(|traces| {
+        median_with_infinity(
+            traces
+                .iter()
+                .map(|t| t.settle_after(STEP_AT_S, 0.010))
+                .collect(),
+        )
+    });
+    Row {
+        name: "delay_step",
+        criterion: "s after the 0.2 -> 0.35 s step at 20 s until the error stays <= 10 ms (median)",
+        measured,
+        limit: Limit::Max(8.0),
+    }
 }
 
 /// True -0.15 s with the default range `[0, 1] s`: seconds from the start
@@ -499,8 +578,8 @@ pub fn run(options: &SuiteOptions) -> Vec<Row> {
 /// never).
 fn out_of_range_row(options: &SuiteOptions) -> Row {
     let times = per_seed(&options.seeds, |seed| {
-        let config = sim(Scenario::High, seed, DelayProfile::constant(-0.15));
-        let mut estimator = proposed(&config, COLD)?;
+        let (config, setup) = row_run("out_of_range_reported", seed)?;
+        let mut estimator = proposed(&config, setup, options.tuning)?;
         for event in &events(&config) {
             feed(&mut estimator, event);
             let below = matches!(
@@ -529,16 +608,17 @@ fn out_of_range_row(options: &SuiteOptions) -> Row {
 /// Low and high, calibrated start, pooled over the coverage seeds: fraction
 /// of the trace points from 10 s whose error is within the reported 1-sigma.
 fn sigma_coverage_row(options: &SuiteOptions) -> Row {
-    let setup = NavSetup {
-        calibrated: true,
-        range_s: None,
-        gps_rate_hz: None,
-    };
     let mut inside = 0usize;
     let mut total = 0usize;
     let mut refused = false;
     for scenario in [Scenario::Low, Scenario::High] {
-        match proposed_traces(&options.coverage_seeds, constant_config(scenario), setup) {
+        let traces: Option<Vec<DelayTrace>> = per_seed(&options.coverage_seeds, |seed| {
+            let config = sim(scenario, seed, DelayProfile::constant(0.2));
+            proposed_trace(&config, CALIBRATED, options.tuning)
+        })
+        .into_iter()
+        .collect();
+        match traces {
             Some(traces) => {
                 for t in &traces {
                     let (i, n) = t.coverage_from(10.0);
@@ -557,21 +637,12 @@ fn sigma_coverage_row(options: &SuiteOptions) -> Row {
     }
 }
 
-fn constant_config(scenario: Scenario) -> impl Fn(u64) -> SimConfig + Sync {
-    move |seed| sim(scenario, seed, DelayProfile::constant(0.2))
-}
-
 /// AEKF17 at hover for 60 s, started at the true 0.2 s with its default
 /// sigma: |final error| / final sigma (median).
 fn aekf17_hover_row(options: &SuiteOptions) -> Row {
     let ratios = per_seed(&options.seeds, |seed| {
-        let config = hover(sim(Scenario::High, seed, DelayProfile::constant(0.2)));
-        let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
-        aekf.initial_delay_s = 0.2;
-        let t = trace(
-            AugmentedEkf17::new(aekf).expect("valid Aekf17 config"),
-            &events(&config),
-        );
+        let (config, aekf) = aekf17_hover(seed, &HoverSetup::default());
+        let t = trace(aekf, &events(&config));
         let k = t.t_s.len().checked_sub(1)?;
         Some((t.estimate_s[k] - t.truth_s[k]).abs() / t.std_s[k])
     });
@@ -587,14 +658,318 @@ fn aekf17_hover_row(options: &SuiteOptions) -> Row {
     }
 }
 
+/// Changes to the `aekf17_hover` row for [`write_hover_trace`] (`None`: the
+/// row's).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct HoverSetup {
+    /// Length of the hover, s [default: 60].
+    pub duration_s: Option<f64>,
+    /// `Aekf17Config::delay_random_walk`.
+    pub delay_random_walk: Option<f64>,
+    /// `Aekf17Config::accel_smoothing_s`.
+    pub accel_smoothing_s: Option<f64>,
+}
+
+/// The run and the filter of the `aekf17_hover` row on `seed`.
+fn aekf17_hover(seed: u64, setup: &HoverSetup) -> (SimConfig, AugmentedEkf17<f64>) {
+    let mut config = hover(sim(Scenario::High, seed, DelayProfile::constant(0.2)));
+    if let Some(duration_s) = setup.duration_s {
+        config.duration_s = duration_s;
+    }
+    let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
+    aekf.initial_delay_s = 0.2;
+    if let Some(q) = setup.delay_random_walk {
+        aekf.delay_random_walk = q;
+    }
+    if let Some(t) = setup.accel_smoothing_s {
+        aekf.accel_smoothing_s = t;
+    }
+    let filter = AugmentedEkf17::new(aekf).expect("valid Aekf17 config");
+    (config, filter)
+}
+
+/// The end of [`write_hover_trace`]'s run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HoverSummary {
+    /// CSV rows written (one a second).
+    pub rows: usize,
+    /// Delay estimate at the last 10 ms point, s.
+    pub estimate_s: f64,
+    /// Its sigma, s.
+    pub sigma_s: f64,
+    /// |error| / sigma there (the row's figure for this seed).
+    pub ratio: f64,
+    /// Times the filter clamped the delay into its range.
+    pub clamps: u32,
+}
+
+/// Runs AEKF17 on the `aekf17_hover` row's run of `seed`, changed by
+/// `setup`, and writes every second the true delay, the estimate, its
+/// sigma, |error| / sigma and the clamp count as CSV to `out`.
+pub fn write_hover_trace(
+    seed: u64,
+    setup: &HoverSetup,
+    out: &mut impl std::io::Write,
+) -> std::io::Result<HoverSummary> {
+    let (config, mut aekf) = aekf17_hover(seed, setup);
+    writeln!(out, "t_s,truth_s,estimate_s,sigma_s,ratio,clamps")?;
+    let mut summary = HoverSummary {
+        rows: 0,
+        estimate_s: f64::NAN,
+        sigma_s: f64::NAN,
+        ratio: f64::NAN,
+        clamps: 0,
+    };
+    for event in &events(&config) {
+        feed(&mut aekf, event);
+        let SimEvent::Imu { truth, .. } = event else {
+            continue;
+        };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
+        }
+        let est = aekf.estimate();
+        summary.estimate_s = est.and_then(|e| e.delay_s).unwrap_or(f64::NAN);
+        summary.sigma_s = est.and_then(|e| e.delay_std_s).unwrap_or(f64::NAN);
+        summary.ratio = (summary.estimate_s - truth.gps_delay_s).abs() / summary.sigma_s;
+        summary.clamps = aekf.delay_clamps();
+        if truth.t_us.is_multiple_of(CSV_STEP_US) {
+            writeln!(
+                out,
+                "{:.1},{:.6},{:.6},{:.6},{:.4},{}",
+                truth.t_us as f64 * 1e-6,
+                truth.gps_delay_s,
+                summary.estimate_s,
+                summary.sigma_s,
+                summary.ratio,
+                summary.clamps,
+            )?;
+            summary.rows += 1;
+        }
+    }
+    Ok(summary)
+}
+
 /// The suite's JSON document.
 pub fn to_json(rows: &[Row], options: &SuiteOptions) -> Value {
     json!({
         "suite": "delay (issue 11)",
         "seeds": options.seeds,
         "coverage_seeds": options.coverage_seeds,
+        "loop_tuning": options.tuning.to_json(),
         "run_s": RUN_S,
         "score_from_s": SCORE_FROM_S,
         "delay_scenarios": rows.iter().map(Row::to_json).collect::<Vec<_>>(),
     })
+}
+
+/// Spacing of the rows of [`write_trace`], us.
+const CSV_STEP_US: u64 = 1_000_000;
+
+/// Names of the loop's axes, in [`DelayUpdate::axes`] order.
+const AXIS_NAMES: [&str; 3] = ["north", "east", "down"];
+
+fn status_name(status: DelayStatus<f64>) -> &'static str {
+    match status {
+        DelayStatus::WaitingForData => "waiting_for_data",
+        DelayStatus::WaitingForMotion => "waiting_for_motion",
+        DelayStatus::Acquiring => "acquiring",
+        DelayStatus::Locked => "locked",
+        DelayStatus::BelowRange { .. } => "below_range",
+        DelayStatus::AboveRange { .. } => "above_range",
+    }
+}
+
+/// What [`write_trace`] wrote and measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceSummary {
+    /// CSV rows written (one a second).
+    pub rows: usize,
+    /// Delay RMSE from 20 s at the suite's 10 ms spacing, ms, per estimate:
+    /// `navigator` (as the suite scores it), and with `compare` `oracle_accel`
+    /// and `true_accel`.
+    pub rmse_ms: Vec<(&'static str, f64)>,
+}
+
+/// Squared-error sum and count from [`SCORE_FROM_S`] of one estimate.
+#[derive(Debug, Default, Clone, Copy)]
+struct Score {
+    sum: f64,
+    n: usize,
+}
+
+impl Score {
+    fn add(&mut self, t_s: f64, error_s: f64) {
+        if t_s >= SCORE_FROM_S {
+            self.sum += error_s * error_s;
+            self.n += 1;
+        }
+    }
+
+    fn rmse_ms(self) -> f64 {
+        (self.sum / self.n as f64).sqrt() * 1e3
+    }
+}
+
+/// Two more delay loops beside the navigator's, configured as its loop and
+/// fed the same GPS fixes: one the `oracle` navigator's NED acceleration
+/// (the navigator in fixed mode, given the true start delay; its `a_fwd`
+/// when the accelerometer whitening is a pass-through, as here), one the
+/// measured specific force rotated with the true attitude, true bias
+/// removed, gravity added (the true acceleration plus the accelerometer's
+/// noise).
+struct Comparison {
+    oracle: DelayCompensatedNav<f64>,
+    oracle_loop: Box<DefaultDelayLoop<f64>>,
+    true_loop: Box<DefaultDelayLoop<f64>>,
+}
+
+impl Comparison {
+    fn new(config: &SimConfig, nav: &DelayCompensatedNav<f64>) -> Option<Self> {
+        let mode = DelayMode::Fixed {
+            delay_s: config.delay.initial_s,
+        };
+        let loop_config = *nav.delay_loop().config();
+        Some(Self {
+            oracle: super::nav(config, mode, None),
+            oracle_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
+            true_loop: Box::new(DefaultDelayLoop::new(loop_config).ok()?),
+        })
+    }
+
+    /// Refusals are the loops' business, as the navigator's.
+    fn feed(&mut self, event: &SimEvent) {
+        feed(&mut self.oracle, event);
+        match event {
+            SimEvent::Imu { sample, truth } => {
+                if let Some(a) = self.oracle.acceleration_ned_m_s2() {
+                    let _ = self.oracle_loop.push_imu(sample.t_us, a);
+                }
+                let gravity = Vector3::new(0.0, 0.0, STANDARD_GRAVITY);
+                let a = truth.attitude * (sample.accel_m_s2 - truth.accel_bias_m_s2) + gravity;
+                let _ = self.true_loop.push_imu(sample.t_us, a);
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = self.oracle_loop.push_gps_fix(fix);
+                let _ = self.true_loop.push_gps_fix(fix);
+            }
+            SimEvent::Mag(_) => {}
+        }
+    }
+}
+
+/// Runs the `proposed` navigator of row `name` on `seed` and writes, every
+/// second, the true delay, the navigator's estimate and sigma, the loop's
+/// drift-rate estimate and status, and the last delay update's axes (valid flag, window peak, peak
+/// correlation, IMU acceleration variance over the buffer) as CSV to `out`.
+/// Delays are relative to the raw IMU (the loop's values plus the
+/// accelerometer whitening's group delay), as the suite scores them. With
+/// `compare`, two more loops fed other accelerations ([`Comparison`]) add
+/// their estimates. `Ok(None)` when the row has no navigator trace or the
+/// navigator refuses its setup.
+pub fn write_trace(
+    name: &str,
+    seed: u64,
+    tuning: LoopTuning,
+    compare: bool,
+    out: &mut impl std::io::Write,
+) -> std::io::Result<Option<TraceSummary>> {
+    let Some((config, setup)) = row_run(name, seed) else {
+        return Ok(None);
+    };
+    let Some(mut nav) = proposed(&config, setup, tuning) else {
+        return Ok(None);
+    };
+    let mut comparison = None;
+    if compare {
+        let Some(c) = Comparison::new(&config, &nav) else {
+            return Ok(None);
+        };
+        comparison = Some(c);
+    }
+    let (group_delay_s, _) = nav.group_delays_s();
+    write!(
+        out,
+        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,update_t_s"
+    )?;
+    for axis in AXIS_NAMES {
+        write!(
+            out,
+            ",{axis}_valid,{axis}_peak_s,{axis}_peak_error_ms,{axis}_correlation,{axis}_accel_variance_m2_s4"
+        )?;
+    }
+    if compare {
+        write!(out, ",oracle_accel_estimate_s,true_accel_estimate_s")?;
+    }
+    writeln!(out)?;
+    let mut rows = 0;
+    let mut scores = [Score::default(); 3];
+    for event in &events(&config) {
+        feed(&mut nav, event);
+        if let Some(c) = &mut comparison {
+            c.feed(event);
+        }
+        let SimEvent::Imu { truth, .. } = event else {
+            continue;
+        };
+        if !truth.t_us.is_multiple_of(TRACE_STEP_US) {
+            continue;
+        }
+        let t_s = truth.t_us as f64 * 1e-6;
+        let truth_s = truth.gps_delay_s;
+        let others = comparison.as_ref().map(|c| {
+            [
+                c.oracle_loop.delay_s() + group_delay_s,
+                c.true_loop.delay_s() + group_delay_s,
+            ]
+        });
+        let estimate_s = nav.estimate().and_then(|e| e.delay_s).unwrap_or(f64::NAN);
+        scores[0].add(t_s, estimate_s - truth_s);
+        for (score, other) in scores[1..].iter_mut().zip(others.iter().flatten()) {
+            score.add(t_s, other - truth_s);
+        }
+        if !truth.t_us.is_multiple_of(CSV_STEP_US) {
+            continue;
+        }
+        write!(
+            out,
+            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{:.4},{}",
+            nav.delay_std_s(),
+            (estimate_s - truth_s) * 1e3,
+            nav.delay_loop().delay_rate() * 1e3,
+            status_name(nav.delay_loop().status()),
+        )?;
+        match nav.last_delay_update() {
+            Some(update) => {
+                write!(out, ",{:.3}", update.t_us as f64 * 1e-6)?;
+                for axis in &update.axes {
+                    let peak_s = axis.measured_delay_s + group_delay_s;
+                    write!(
+                        out,
+                        ",{},{peak_s:.6},{:.3},{:.4},{:.4}",
+                        u8::from(axis.valid),
+                        (peak_s - truth_s) * 1e3,
+                        axis.correlation.peak,
+                        axis.correlation.accel_variance,
+                    )?;
+                }
+            }
+            None => write!(out, "{}", ",".repeat(1 + 5 * AXIS_NAMES.len()))?,
+        }
+        if let Some([oracle_s, true_s]) = others {
+            write!(out, ",{oracle_s:.6},{true_s:.6}")?;
+        }
+        writeln!(out)?;
+        rows += 1;
+    }
+    let names = ["navigator", "oracle_accel", "true_accel"];
+    let kept = if compare { 3 } else { 1 };
+    Ok(Some(TraceSummary {
+        rows,
+        rmse_ms: names
+            .into_iter()
+            .zip(scores.map(Score::rmse_ms))
+            .take(kept)
+            .collect(),
+    }))
 }

@@ -13,6 +13,10 @@
 //! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # issue 11's delay suite
+//! cargo run --release --features sim --example reproduce -- --delay-suite --rows delay_ramp,gps_2hz \
+//!     --delay-rate-std 1 --delay-rate-time-constant 30 --json d.json      # rows with the drift-rate state
+//! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_low --seed 1 \
+//!     --csv target/low.csv                                                 # a row's run, per second
 //! ```
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
@@ -126,8 +130,9 @@ struct Args {
     /// A short run for CI and tests (2 seeds of 20 s, no plots unless --plots).
     #[arg(long)]
     quick: bool,
-    /// Also write each scenario's first-seed run as a CSV log under DIR/<scenario>-seed<S>/.
-    #[arg(long, value_name = "DIR")]
+    /// Also write each scenario's first-seed run as a CSV log under
+    /// DIR/<scenario>-seed<S>/; with --delay-trace, the trace's CSV file.
+    #[arg(long, value_name = "DIR|FILE")]
     csv: Option<PathBuf>,
     /// Start `proposed` and `aekf17` from the fixed 0.1 s instead of an
     /// offline calibration on a separate run (sec. 2.2.2).
@@ -147,6 +152,41 @@ struct Args {
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
     delay_suite: bool,
+    /// Write a per-second trace of the delay suite's row ROW (seed --seed,
+    /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
+    /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
+    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length).
+    #[arg(long, value_name = "ROW")]
+    delay_trace: Option<String>,
+    /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
+    #[arg(long, value_name = "S_PER_SQRT_S")]
+    aekf17_delay_random_walk: Option<f64>,
+    /// With --delay-trace aekf17_hover: AEKF17's `accel_smoothing_s` (0: the
+    /// paper's last sample) [default: its own].
+    #[arg(long, value_name = "S")]
+    aekf17_accel_smoothing: Option<f64>,
+    /// With --delay-trace: two more delay loops beside the navigator's, fed
+    /// the oracle navigator's acceleration and the true acceleration plus
+    /// the accelerometer's noise (their estimates as two more columns, the
+    /// three RMSEs from 20 s printed).
+    #[arg(long)]
+    compare_accel: bool,
+    /// With --delay-suite: only these rows (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
+    rows: Option<Vec<String>>,
+    /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
+    /// delay loop on, `GainFusionConfig::rate_std` in ms/s, in every row
+    /// [default: the loop's, off].
+    #[arg(long, value_name = "MS_PER_S")]
+    delay_rate_std: Option<f64>,
+    /// With --delay-suite or --delay-trace: `GainFusionConfig::rate_time_constant_s`, s, in
+    /// every row [default: the loop's].
+    #[arg(long, value_name = "S")]
+    delay_rate_time_constant: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
+    #[arg(long, value_name = "MS2_PER_S")]
+    delay_process_noise: Option<f64>,
     /// Run only the bound study instead of the tables: the bound with each
     /// difference to the estimators in turn, beside `oracle` and `proposed`.
     #[arg(long)]
@@ -1751,6 +1791,47 @@ impl Progress {
     }
 }
 
+/// Where `--delay-trace` writes (its directory created).
+fn trace_path(args: &Args) -> std::io::Result<PathBuf> {
+    let row = args.delay_trace.as_deref().unwrap_or("trace");
+    let path = args.csv.clone().unwrap_or_else(|| {
+        PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
+    });
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)?;
+    }
+    Ok(path)
+}
+
+/// The delay loop's changes that `--delay-rate-std`, `--delay-rate-time-constant`
+/// and `--delay-process-noise` ask for.
+fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
+    delay_suite::LoopTuning {
+        rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
+        rate_time_constant_s: args.delay_rate_time_constant,
+        process_noise_ms2_per_s: args.delay_process_noise,
+    }
+}
+
+/// The delay suite's options: `seeds_n` seeds from `--seed`, `--rows`, the
+/// loop's tuning; an error names a row the suite does not have.
+fn suite_options(args: &Args, seeds_n: u64) -> Result<delay_suite::SuiteOptions, String> {
+    let mut options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+    if let Some(names) = &args.rows {
+        let rows = names.iter().map(|n| {
+            delay_suite::row_name(n).ok_or_else(|| {
+                format!(
+                    "--rows: no row {n:?} (rows: {})",
+                    delay_suite::ROW_NAMES.join(", ")
+                )
+            })
+        });
+        options.rows = Some(rows.collect::<Result<_, _>>()?);
+    }
+    options.tuning = delay_tuning(args);
+    Ok(options)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
     if let Some(rate) = args.filter_rate_hz {
@@ -1791,8 +1872,48 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ScenarioChoice::High => vec![Scenario::High],
         ScenarioChoice::All => Scenario::ALL.to_vec(),
     };
+    let tuning = delay_tuning(&args);
+    if args.delay_trace.as_deref() == Some("aekf17_hover") {
+        let setup = delay_suite::HoverSetup {
+            duration_s: args.duration,
+            delay_random_walk: args.aekf17_delay_random_walk,
+            accel_smoothing_s: args.aekf17_accel_smoothing,
+        };
+        let path = trace_path(&args)?;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        let end = delay_suite::write_hover_trace(args.seed, &setup, &mut out)?;
+        std::io::Write::flush(&mut out)?;
+        eprintln!(
+            "aekf17_hover seed {}: final estimate {:.4} s, sigma {:.4} s, ratio {:.4}, {} clamps",
+            args.seed, end.estimate_s, end.sigma_s, end.ratio, end.clamps
+        );
+        eprintln!("wrote {} rows to {}", end.rows, path.display());
+        return Ok(());
+    }
+    if let Some(row) = &args.delay_trace {
+        let path = trace_path(&args)?;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        let summary =
+            delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut out)?;
+        let Some(summary) = summary else {
+            return Err(format!(
+                "--delay-trace: no navigator trace for {row:?} (rows: {})",
+                delay_suite::TRACE_ROWS.join(", ")
+            )
+            .into());
+        };
+        std::io::Write::flush(&mut out)?;
+        for (estimate, rmse_ms) in &summary.rmse_ms {
+            eprintln!(
+                "{row} seed {}: {estimate} delay RMSE from 20 s {rmse_ms:.4} ms",
+                args.seed
+            );
+        }
+        eprintln!("wrote {} rows to {}", summary.rows, path.display());
+        return Ok(());
+    }
     if args.delay_suite {
-        let options = delay_suite::SuiteOptions::full(args.seed, seeds_n);
+        let options = suite_options(&args, seeds_n)?;
         let rows = delay_suite::run(&options);
         if let Some(parent) = args.json.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent)?;
@@ -1918,5 +2039,132 @@ mod json_contract {
             assert!(entry.contains_key("nees_mean"), "{name}.nees_mean");
         }
         assert!(estimators["proposed_f32"]["nees_mean"].is_number());
+    }
+}
+
+#[cfg(test)]
+mod delay_flags {
+    use super::*;
+
+    fn parse(flags: &[&str]) -> Args {
+        Args::try_parse_from(std::iter::once("reproduce").chain(flags.iter().copied()))
+            .expect("the flags parse")
+    }
+
+    /// `--rows`, `--delay-rate-std` (ms/s), `--delay-rate-time-constant` and
+    /// `--delay-process-noise` reach the suite's options and its JSON; a
+    /// row the suite does not have is refused with the list.
+    #[test]
+    fn suite_flags_reach_the_options() {
+        let args = parse(&[
+            "--delay-suite",
+            "--rows",
+            "delay_step,aekf17_hover",
+            "--seed",
+            "3",
+            "--delay-rate-std",
+            "2",
+            "--delay-rate-time-constant",
+            "300",
+            "--delay-process-noise",
+            "0.5",
+        ]);
+        let options = suite_options(&args, 2).expect("known rows");
+        assert_eq!(options.rows, Some(vec!["delay_step", "aekf17_hover"]));
+        assert_eq!(options.seeds, [3, 4]);
+        let tuning = options.tuning;
+        assert!((tuning.rate_std.expect("set") - 2e-3).abs() < 1e-12);
+        assert_eq!(tuning.rate_time_constant_s, Some(300.0));
+        assert_eq!(tuning.process_noise_ms2_per_s, Some(0.5));
+        let json = delay_suite::to_json(&[], &options);
+        assert_eq!(json["loop_tuning"]["rate_time_constant_s"], 300.0);
+        let defaults = suite_options(&parse(&["--delay-suite"]), 5).expect("no rows named");
+        assert_eq!(defaults.rows, None);
+        assert_eq!(defaults.tuning, delay_suite::LoopTuning::default());
+        let bad = suite_options(&parse(&["--delay-suite", "--rows", "cold_start"]), 1);
+        assert!(bad.is_err_and(|e| e.contains("cold_start_low")));
+    }
+
+    /// `--delay-trace ROW --compare-accel`: one CSV row a second with the
+    /// two comparison columns, and the navigator's RMSE the suite's row
+    /// measures on that seed with the same tuning.
+    #[test]
+    fn trace_agrees_with_the_suite() {
+        let args = parse(&[
+            "--delay-trace",
+            "cold_start_high",
+            "--compare-accel",
+            "--seed",
+            "2",
+            "--delay-rate-std",
+            "1",
+        ]);
+        let tuning = delay_tuning(&args);
+        let row = args.delay_trace.as_deref().expect("a row");
+        let mut csv = Vec::new();
+        let summary =
+            delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut csv)
+                .expect("writes to memory")
+                .expect("a navigator row");
+        let text = String::from_utf8(csv).expect("UTF-8");
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(summary.rows, 61);
+        assert_eq!(lines.len(), 62);
+        let columns = lines[0].split(',').count();
+        assert_eq!(columns, 8 + 3 * 5 + 2);
+        assert!(lines.iter().all(|l| l.split(',').count() == columns));
+        assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
+        let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();
+        assert_eq!(names, ["navigator", "oracle_accel", "true_accel"]);
+        assert!(
+            summary
+                .rmse_ms
+                .iter()
+                .all(|(_, x)| x.is_finite() && *x > 0.0)
+        );
+        let options = delay_suite::SuiteOptions {
+            seeds: vec![2],
+            coverage_seeds: vec![2],
+            rows: Some(vec!["cold_start_high"]),
+            tuning,
+        };
+        let suite = delay_suite::run(&options)[0].measured.expect("measured");
+        assert_eq!(summary.rmse_ms[0].1, suite);
+        let none = delay_suite::write_trace("sigma_coverage", 1, tuning, false, &mut Vec::new());
+        assert!(none.expect("nothing written").is_none());
+    }
+
+    /// `--delay-trace aekf17_hover`: the flags reach the hover's setup, and
+    /// the default trace ends on the suite row's figure for that seed.
+    #[test]
+    fn hover_trace_agrees_with_the_suite() {
+        let args = parse(&[
+            "--delay-trace",
+            "aekf17_hover",
+            "--duration",
+            "30",
+            "--aekf17-delay-random-walk",
+            "0",
+            "--aekf17-accel-smoothing",
+            "0",
+        ]);
+        assert_eq!(args.duration, Some(30.0));
+        assert_eq!(args.aekf17_delay_random_walk, Some(0.0));
+        assert_eq!(args.aekf17_accel_smoothing, Some(0.0));
+        let setup = delay_suite::HoverSetup::default();
+        let mut csv = Vec::new();
+        let end = delay_suite::write_hover_trace(1, &setup, &mut csv).expect("writes to memory");
+        let text = String::from_utf8(csv).expect("UTF-8");
+        assert_eq!(end.rows, 61);
+        assert_eq!(text.lines().count(), 62);
+        assert!(end.ratio.is_finite() && end.sigma_s > 0.0);
+        let options = delay_suite::SuiteOptions {
+            seeds: vec![1],
+            coverage_seeds: vec![1],
+            rows: Some(vec!["aekf17_hover"]),
+            tuning: delay_suite::LoopTuning::default(),
+        };
+        let suite = delay_suite::run(&options)[0].measured.expect("measured");
+        assert_eq!(end.ratio, suite);
     }
 }
