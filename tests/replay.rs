@@ -1289,6 +1289,11 @@ fn rate_adapted_loop_moves_by_the_added_delay() {
             .unwrap();
         let summary = proposed_on_log171(&dir, true, &reader, &window);
         assert_eq!(summary.non_finite_estimates, 0);
+        // One record per loop update (a 5 s window every fix from about
+        // 50 s on), in time order: what `replay --delay-windows` writes.
+        let windows = &summary.delay_windows;
+        assert!(windows.len() > 500, "{} loop updates", windows.len());
+        assert!(windows.windows(2).all(|w| w[0].t_s < w[1].t_s));
         summary
             .final_delay_s
             .expect("the navigator estimates a delay")
