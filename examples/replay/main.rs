@@ -33,7 +33,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use std::error::Error;
 use std::fs::File;
-use std::io::BufWriter;
+use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
 type Failure = Box<dyn Error>;
@@ -84,6 +84,10 @@ struct Args {
     /// Summary JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// CSV of every delay-loop update (one correlation window): the fused
+    /// estimate, its status and each axis' peak, for estimators with a loop.
+    #[arg(long)]
+    delay_windows: Option<PathBuf>,
     /// Directory for SVG plots.
     #[arg(long)]
     plots: Option<PathBuf>,
@@ -838,6 +842,47 @@ fn skips_json(skips: &SkipCounts) -> Value {
     json!({ "total": skips.total(), "by_kind": by_kind, "by_file": by_file })
 }
 
+/// `--delay-windows`: one row per delay-loop update and estimator.
+fn write_delay_windows<'a>(
+    path: &std::path::Path,
+    summaries: impl Iterator<Item = (&'a str, &'a RunSummary)>,
+) -> Result<(), Failure> {
+    let mut w = BufWriter::new(File::create(path)?);
+    write!(w, "estimator,t_s,delay_s,delay_std_s,status")?;
+    for axis in ["n", "e", "d"] {
+        write!(
+            w,
+            ",{axis}_valid,{axis}_delay_s,{axis}_peak,{axis}_accel_var,{axis}_interior"
+        )?;
+    }
+    writeln!(w)?;
+    for (name, s) in summaries {
+        for win in &s.delay_windows {
+            // The status's debug form may hold commas (out of range).
+            let status = win.status.replace(',', ";");
+            write!(
+                w,
+                "{name},{:.3},{:.5},{:.5},{status}",
+                win.t_s, win.delay_s, win.delay_std_s
+            )?;
+            for a in &win.axes {
+                write!(
+                    w,
+                    ",{},{:.5},{:.4},{:.4},{}",
+                    u8::from(a.valid),
+                    a.measured_delay_s,
+                    a.peak,
+                    a.accel_variance,
+                    u8::from(a.interior)
+                )?;
+            }
+            writeln!(w)?;
+        }
+    }
+    w.flush()?;
+    Ok(())
+}
+
 fn summary_json(name: &str, s: &RunSummary, skips: &SkipCounts) -> Value {
     let rms = s.reference_rms;
     json!({
@@ -1019,6 +1064,9 @@ fn run(mut args: Args) -> Result<(), Failure> {
                 fmt_opt(d.settled_after_s, 1),
             );
         }
+    }
+    if let Some(path) = &args.delay_windows {
+        write_delay_windows(path, summaries.iter().map(|(r, s, _)| (r.name, s)))?;
     }
     println!();
     println!("health at the end of the replay (docs/replay.md, \"Health summary\"):");

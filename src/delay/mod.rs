@@ -324,7 +324,11 @@ impl<T: Scalar> DelayLoopConfig<T> {
     ///   averaging for the correlation peak to stay high; a common low-pass
     ///   near `rate / n` dominates both;
     /// - the buffer holds at least 10 fix intervals: `max(5 s, 10 / rate)`
-    ///   (at most 10 s).
+    ///   (at most 10 s);
+    /// - a re-acquisition needs the disagreement over
+    ///   [`REACQUIRE_AFTER_FIXES`] new fixes: `reacquire_after_s` at least
+    ///   `10 / rate` (at 5 Hz, the per-window peaks of a real flight leave
+    ///   the estimate for a second during a manoeuvre, see `docs/delay.md`).
     ///
     /// Refused: a rate outside 1-20 Hz or not finite.
     pub fn adapted_to_gps_rate(mut self, gps_rate_hz: T) -> Result<Self, Error> {
@@ -341,6 +345,9 @@ impl<T: Scalar> DelayLoopConfig<T> {
         self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
         self.matched_fix_intervals = gps_rate_hz < T::lit(MATCHED_BELOW_HZ);
         self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
+        self.reacquire_after_s = self
+            .reacquire_after_s
+            .max(T::lit(REACQUIRE_AFTER_FIXES) / gps_rate_hz);
         self.validate()?;
         Ok(self)
     }
@@ -525,6 +532,12 @@ impl<T: Scalar> DelayStatus<T> {
         )
     }
 }
+
+/// New fixes over which every valid axis must disagree with the estimate
+/// before the loop re-acquires, at any GPS rate: [`DelayLoopConfig::adapted_to_gps_rate`]
+/// raises `reacquire_after_s` to `REACQUIRE_AFTER_FIXES / rate` (1 s at
+/// 10 Hz, the default; 2 s at 5 Hz).
+pub const REACQUIRE_AFTER_FIXES: f64 = 10.0;
 
 /// Time constant of the innovation match that scales the reported sigma, s
 /// (two independent 5 s buffers; the first valid window sets it).
@@ -1188,6 +1201,26 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The re-acquisition waits for the same number of new fixes at every
+    /// rate, and never less than configured.
+    #[test]
+    fn reacquisition_waits_for_ten_new_fixes() {
+        let after = |rate: f64, configured: f64| {
+            DelayLoopConfig::<f64> {
+                reacquire_after_s: configured,
+                ..DelayLoopConfig::default()
+            }
+            .adapted_to_gps_rate(rate)
+            .unwrap()
+            .reacquire_after_s
+        };
+        assert_eq!(after(10.0, 1.0), 1.0);
+        assert_eq!(after(20.0, 1.0), 1.0);
+        assert_eq!(after(5.0, 1.0), 2.0);
+        assert_eq!(after(1.0, 1.0), 10.0);
+        assert_eq!(after(5.0, 3.0), 3.0);
+    }
 
     /// An axis far from the best-measured one is left out; one within its
     /// spread stays; a single valid axis is kept.

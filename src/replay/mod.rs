@@ -54,8 +54,8 @@ pub mod window;
 pub use defaults::{ImuNoise, LogDefaults, MagneticModel, NoiseSource, log_date, magnetic_model};
 pub use estimates_csv::EstimateWriter;
 pub use run::{
-    DelayStep, DelayStepSummary, FusionRecords, ReferenceRms, RunOptions, RunSummary,
-    inclination_at_rest, replay,
+    DelayStep, DelayStepSummary, DelayWindow, FusionRecords, ReferenceRms, RunOptions, RunSummary,
+    WindowAxis, inclination_at_rest, replay,
 };
 pub use window::{FlightWindow, flight_window};
 

@@ -17,6 +17,7 @@
 //! start of scoring are not scored, and counted.
 
 use super::{ReferenceAlignment, ReferenceSample, SensorEvent};
+use crate::delay::DelayUpdate;
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{euler_from_quaternion, wrap_pi};
@@ -213,6 +214,10 @@ pub struct RunSummary {
     pub delay_track: Vec<(f64, f64)>,
     /// The last delay estimate, seconds.
     pub final_delay_s: Option<f64>,
+    /// Every update of the delay loop, for estimators that have one
+    /// ([`FusionRecords::last_delay_update`]): the per-window correlation
+    /// peaks behind the estimate.
+    pub delay_windows: Vec<DelayWindow>,
     /// How the delay estimate followed [`RunOptions::delay_step`], for
     /// estimators with a delay estimate.
     pub delay_step: Option<DelayStepSummary>,
@@ -223,6 +228,54 @@ pub struct RunSummary {
     /// Reference samples in the window that were not scored (before the
     /// first estimate or before `score_from_us`).
     pub reference_unscored: u64,
+}
+
+/// One update of a delay loop (one correlation window), in seconds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DelayWindow {
+    /// Receive time of the fix that closed the window, s.
+    pub t_s: f64,
+    /// The fused estimate after the update, s.
+    pub delay_s: f64,
+    /// Its standard deviation, s.
+    pub delay_std_s: f64,
+    /// The loop's status after the update ([`crate::DelayStatus`], debug form).
+    pub status: String,
+    /// North, east, down.
+    pub axes: [WindowAxis; 3],
+}
+
+/// One axis of a [`DelayWindow`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowAxis {
+    /// The measurement was fused.
+    pub valid: bool,
+    /// The refined correlation peak as a delay, s.
+    pub measured_delay_s: f64,
+    /// The normalized correlation at the peak.
+    pub peak: f64,
+    /// Variance of the IMU acceleration over the window, (m/s^2)^2.
+    pub accel_variance: f64,
+    /// False when the peak sits on an edge of the shift window.
+    pub interior: bool,
+}
+
+impl DelayWindow {
+    fn of<T: Scalar>(u: &DelayUpdate<T>) -> Self {
+        Self {
+            t_s: u.t_us as f64 * 1e-6,
+            delay_s: u.delay_s.as_f64(),
+            delay_std_s: u.delay_std_s.as_f64(),
+            status: format!("{:?}", u.status),
+            axes: u.axes.map(|a| WindowAxis {
+                valid: a.valid,
+                measured_delay_s: a.measured_delay_s.as_f64(),
+                peak: a.correlation.peak.as_f64(),
+                accel_variance: a.correlation.accel_variance.as_f64(),
+                interior: a.correlation.interior,
+            }),
+        }
+    }
 }
 
 impl RunSummary {
@@ -268,6 +321,10 @@ pub trait FusionRecords<T: Scalar> {
     fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
         None
     }
+    /// The delay loop's last update.
+    fn last_delay_update(&self) -> Option<DelayUpdate<T>> {
+        None
+    }
 }
 
 macro_rules! records_of_filter {
@@ -290,6 +347,9 @@ impl<T: Scalar> FusionRecords<T> for crate::DelayCompensatedNav<T> {
     }
     fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
         self.horizon_filter().last_mag_fusion()
+    }
+    fn last_delay_update(&self) -> Option<DelayUpdate<T>> {
+        crate::DelayCompensatedNav::last_delay_update(self).copied()
     }
 }
 
@@ -455,6 +515,11 @@ where
             *summary.refused.entry(error_kind(&e)).or_default() += 1;
         }
         records.observe(nav);
+        if let Some(u) = nav.last_delay_update()
+            && summary.delay_windows.last().map(|w| w.t_s) != Some(u.t_us as f64 * 1e-6)
+        {
+            summary.delay_windows.push(DelayWindow::of(&u));
+        }
         if !matches!(event, SensorEvent::Imu(_)) {
             continue;
         }
