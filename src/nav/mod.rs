@@ -115,8 +115,8 @@
 //! `HIST`: the history's 6 values and a 32-bit time, 28 bytes in `f32` and
 //! 52 in `f64`. The output predictor's ring ([`OUTPUT_ENTRIES`], one entry
 //! per stride), the delay loop and the magnetometer queue ([`MAG_QUEUE`])
-//! do not grow with `HIST`. Measured (`docs/nav.md`): 53,192 bytes in `f32`
-//! at 1100, 36,664 at 530 (1 kHz, 0.5 s), 29,560 at 256 (200 Hz, 1 s).
+//! do not grow with `HIST`. Measured (`docs/nav.md`): 45,032 bytes in `f32`
+//! at 1100, 29,072 at 530 (1 kHz, 0.5 s), 21,400 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
