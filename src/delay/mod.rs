@@ -1243,4 +1243,29 @@ mod tests {
         drop_inconsistent_axes(&[0.0, 0.80, 0.0], &mut single, &r);
         assert_eq!(single, [false, true, false]);
     }
+
+    /// `DefaultDelayLoop` takes the default configuration and the adapted
+    /// one at every GPS rate from 1 to 20 Hz, with the widest ranges its 31
+    /// shifts allow (1.2 s, from 0 or from -0.6 s); one shift more is
+    /// refused.
+    #[test]
+    fn default_capacities_fit_every_adapted_rate() {
+        let mut delay_loop = DefaultDelayLoop::<f32>::BLANK;
+        delay_loop.configure(DelayLoopConfig::default()).unwrap();
+        for tenth_hz in 10..=200u16 {
+            let rate = f32::from(tenth_hz) / 10.0;
+            for (min, max) in [(0.0, 1.2), (-0.6, 0.6)] {
+                let mut config = DelayLoopConfig::<f32>::default();
+                config.fusion.delay_min_s = min;
+                config.fusion.delay_max_s = max;
+                config.fusion.initial_delay_s = 0.0;
+                let config = config.adapted_to_gps_rate(rate).unwrap();
+                let fits = delay_loop.configure(config);
+                assert!(fits.is_ok(), "{rate} Hz, {min} to {max} s: {fits:?}");
+            }
+        }
+        let mut config = DelayLoopConfig::<f32>::default();
+        config.fusion.delay_max_s = 1.24;
+        assert!(delay_loop.configure(config).is_err());
+    }
 }
