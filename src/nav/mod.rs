@@ -115,8 +115,8 @@
 //! `HIST`: the history's 6 values and a 32-bit time, 28 bytes in `f32` and
 //! 52 in `f64`. The output predictor's ring ([`OUTPUT_ENTRIES`], one entry
 //! per stride), the delay loop and the magnetometer queue ([`MAG_QUEUE`])
-//! do not grow with `HIST`. Measured (`docs/nav.md`): 53,192 bytes in `f32`
-//! at 1100, 36,664 at 530 (1 kHz, 0.5 s), 29,560 at 256 (200 Hz, 1 s).
+//! do not grow with `HIST`. Measured (`docs/nav.md`): 45,032 bytes in `f32`
+//! at 1100, 29,072 at 530 (1 kHz, 0.5 s), 21,400 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
@@ -161,16 +161,19 @@ use timeline::{ClockRefusal, SampleTimes, StreamClock};
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
 
-/// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
-/// holds at most 52 (the delay, the filter period and one sample); a longer
+/// Magnetometer samples waiting for the horizon: at 100 Hz, a delay up to
+/// 0.3 s (with the filter period and one sample: 32 samples) fits; a longer
 /// delay or a faster magnetometer fills it, and a full queue is thinned to
-/// every other sample (module docs).
-pub const MAG_QUEUE: usize = 64;
+/// every other sample (module docs): at 0.5 s the magnetometer is fused at
+/// 50 Hz.
+pub const MAG_QUEUE: usize = 32;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
 /// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
-/// spans the largest delay (9 samples at 1 kHz and 0.5 s).
-pub const OUTPUT_ENTRIES: usize = 64;
+/// spans the largest delay (14 samples at 1 kHz and 0.5 s, 27 at the default
+/// 1 s range; 32 entries, 35 samples apart, cost the `high` scenario's roll
+/// 3 %: docs/PERFORMANCE.md).
+pub const OUTPUT_ENTRIES: usize = 40;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
