@@ -564,14 +564,23 @@ mod tests {
 
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
-        /// Variances spanning four orders of magnitude, any seed.
+        /// Variances spanning four orders of magnitude, any seed: f64 against
+        /// the dense form in f64 (the reference), f32 within 5x of the dense
+        /// form's own f32 error or under a floor. Scanned over seeds 1..10^6
+        /// (2026-11-25): the worst f64 errors 2.6e-12 (x) and 1.8e-13 (P); in
+        /// f32 the largest ratio to the dense form above the floor was 4.8x
+        /// (P, seed 821,375: both forms lose to the conditioning of `S`).
+        /// Absolute f32 bounds alone (1e-3, 1e-5) failed 1 case in ~10^4.
         #[test]
         fn matches_the_dense_joseph_form_on_any_seed(seed in 1u64..) {
             let case = random_case::<16>(&mut Rng(seed), 1.0);
             let [(x, p), _] = errors::<f64, 16>(&case);
-            proptest::prop_assert!(x < 1e-12 && p < 1e-13, "f64: {x:e} {p:e}");
-            let [(x, p), _] = errors::<f32, 16>(&case);
-            proptest::prop_assert!(x < 1e-3 && p < 1e-5, "f32: {x:e} {p:e}");
+            proptest::prop_assert!(x < 1e-11 && p < 1e-12, "f64: {x:e} {p:e}");
+            let [(x, p), (x_dense, p_dense)] = errors::<f32, 16>(&case);
+            proptest::prop_assert!(
+                x < 1e-3f64.max(5.0 * x_dense) && p < 3e-5f64.max(5.0 * p_dense),
+                "f32: {x:e} {p:e}, the dense form {x_dense:e} {p_dense:e}"
+            );
         }
     }
 
