@@ -134,10 +134,10 @@ mod memory;
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
 pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 
+use crate::delay::packed::PackedRing;
 use crate::delay::ring::Ring;
 use crate::delay::{
-    DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
-    WhiteningFir,
+    DefaultDelayLoop, DelayUpdate, MAX_INPUT_MAGNITUDE, SensorDelays, WhiteningFir,
 };
 use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::nav_core::check_position_kind;
@@ -160,6 +160,11 @@ use timeline::{ClockRefusal, SampleTimes, StreamClock};
 
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
+
+/// IMU samples that share one offset and scale per channel in the 16-bit
+/// history (`src/delay/packed.rs`); the newest incomplete block is kept in
+/// full precision.
+pub const HISTORY_BLOCK: usize = 32;
 
 /// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
 /// holds at most 52 (the delay, the filter period and one sample); a longer
@@ -398,7 +403,8 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     accel_whitening: Whitening<T>,
     gyro_whitening: Whitening<T>,
     /// Whitened accelerometer (0..3) and gyroscope (3..6).
-    history: FractionalDelayLine<T, 6, HIST, HISTORY_ORDER>,
+    /// 16-bit block floating point (`src/delay/packed.rs`).
+    history: PackedRing<T, 6, HIST, HISTORY_BLOCK>,
     /// Stored samples combined by the history's reads (a work counter).
     interpolation_taps: u64,
     /// Timestamp of every history sample.
@@ -495,7 +501,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         delay_loop: DefaultDelayLoop::BLANK,
         accel_whitening: Whitening::BLANK,
         gyro_whitening: Whitening::BLANK,
-        history: FractionalDelayLine::new(),
+        history: PackedRing::new(),
         interpolation_taps: 0,
         times: SampleTimes::new(),
         forward: ForwardReckoner::new(),
@@ -855,7 +861,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// does not move (or cannot be read yet).
     fn horizon_target(&self, t_us: u64, dt_us: u64) -> Option<u64> {
         let target = t_us.checked_sub(self.delay_us())?;
-        self.history.max_delay_samples()?;
+        if self.history.len() <= HISTORY_ORDER {
+            return None;
+        }
         let oldest = self.times.oldest()?;
         let Some(horizon) = self.horizon_us() else {
             return Some(target);
@@ -894,7 +902,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         // The whitened streams at t_h + D (the raw sensors' t_h), by time.
         let read = |at_us: u64| {
             let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
-            self.history.read(d).ok()
+            self.history.read::<HISTORY_ORDER>(d).ok()
         };
         // Equal group delays (pass-through whitening): one read holds both.
         let a = read(t_h + us(d_f));
