@@ -156,7 +156,7 @@ use crate::zero_option::ZeroOption;
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
-use timeline::{ClockRefusal, SampleTimes, StreamClock};
+use timeline::{ClockRefusal, MAX_SAMPLE_STEP_US, SampleTimes, StreamClock};
 
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
@@ -213,7 +213,8 @@ pub struct NavRefusals {
     /// IMU samples stamped more than `max_time_jump_us` ahead and not
     /// confirmed by the next sample.
     pub imu_ahead: u32,
-    /// IMU gaps longer than the EKF's `max_imu_step_us` (history restarted).
+    /// IMU gaps longer than the EKF's `max_imu_step_us` or than the
+    /// history's 65,535 µs step (history restarted).
     pub imu_gap: u32,
     /// GPS fixes with a non-finite or implausible value.
     pub gps_invalid: u32,
@@ -1143,7 +1144,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
-        if gap {
+        // A step the history's 16-bit sample times cannot hold restarts the
+        // history too (the EKF integrates it as usual).
+        if gap || dt_us > MAX_SAMPLE_STEP_US {
             bump(&mut self.refusals.imu_gap);
             self.last_reset = ZeroOption::Some(ResetRecord {
                 t_us: Some(s.t_us),
@@ -1159,7 +1162,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let mut channels = SVector::<T, 6>::zeros();
         channels.fixed_rows_mut::<3>(0).copy_from(&accel);
         channels.fixed_rows_mut::<3>(3).copy_from(&gyro);
-        // Finite by the checks above: the line cannot refuse it.
+        // Finite and bounded by the checks above: the history cannot refuse it.
         let _ = self.history.push(channels);
         self.times.push(s.t_us);
         self.imu_samples += 1;
