@@ -193,7 +193,7 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
 
 /// Stencil start and local position `t = d - s0` of a read at
 /// `delay_samples` from `len` stored samples (module docs).
-fn stencil<T: Scalar, const ORDER: usize>(
+pub(crate) fn stencil<T: Scalar, const ORDER: usize>(
     len: usize,
     delay_samples: T,
 ) -> Result<(usize, T), Error> {
@@ -225,24 +225,29 @@ fn stencil<T: Scalar, const ORDER: usize>(
 /// [`FractionalDelayLine`] and the navigator's 16-bit one.
 pub(crate) fn lagrange_read<T: Scalar, const CH: usize, const ORDER: usize>(
     len: usize,
-    get: impl Fn(usize) -> Option<SVector<T, CH>>,
+    mut get: impl FnMut(usize) -> Option<SVector<T, CH>>,
     delay_samples: T,
 ) -> Result<SVector<T, CH>, Error> {
     let (s0, t) = stencil::<T, ORDER>(len, delay_samples)?;
     let mut out = SVector::<T, CH>::zeros();
     for j in 0..=ORDER {
-        let mut w = T::one();
-        for m in 0..=ORDER {
-            if m != j {
-                w *= (t - T::lit(m as f64)) / (T::lit(j as f64) - T::lit(m as f64));
-            }
-        }
         // s0 + j <= len - 1 by construction of the stencil.
         if let Some(x) = get(s0 + j) {
-            out += x * w;
+            out += x * lagrange_weight::<T, ORDER>(j, t);
         }
     }
     Ok(out)
+}
+
+/// The weight `w_j(t)` of node `j` (module docs).
+pub(crate) fn lagrange_weight<T: Scalar, const ORDER: usize>(j: usize, t: T) -> T {
+    let mut w = T::one();
+    for m in 0..=ORDER {
+        if m != j {
+            w *= (t - T::lit(m as f64)) / (T::lit(j as f64) - T::lit(m as f64));
+        }
+    }
+    w
 }
 
 /// The long-run mean sample period of a stream, from its timestamps:

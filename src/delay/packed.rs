@@ -37,6 +37,7 @@
 
 use nalgebra::SVector;
 
+use super::fractional_delay::{lagrange_read, lagrange_weight, stencil};
 use crate::error::Error;
 use crate::scalar::{Scalar, zeros_const};
 
@@ -74,6 +75,41 @@ pub(crate) struct PackedRing<T: Scalar, const CH: usize, const N: usize, const B
     next_block: usize,
     /// Whole blocks stored.
     blocks: usize,
+    /// Blocks sealed since construction (never reset: the identity of a
+    /// block for a [`HeaderCache`]).
+    sealed: u64,
+}
+
+/// The decoded offsets and scales of the last two blocks a reader used,
+/// by block identity: a Lagrange read near the last one decodes no header.
+/// Kept by the reader (a `&self` read, no interior mutability).
+#[derive(Debug, Clone)]
+pub(crate) struct HeaderCache<T: Scalar, const CH: usize> {
+    entries: [(u64, [(T, T); CH]); 2],
+    /// The entry replaced next.
+    next: usize,
+}
+
+impl<T: Scalar, const CH: usize> HeaderCache<T, CH> {
+    /// Empty (no block has identity `u64::MAX`).
+    pub(crate) const fn new() -> Self {
+        Self {
+            entries: [(u64::MAX, [(T::ZERO, T::ZERO); CH]); 2],
+            next: 0,
+        }
+    }
+
+    /// The headers of block `block`, decoded by `decode` on a miss.
+    fn headers(&mut self, block: u64, decode: impl FnOnce() -> [(T, T); CH]) -> [(T, T); CH] {
+        if let Some(entry) = self.entries.iter().find(|e| e.0 == block) {
+            return entry.1;
+        }
+        let entry = self.next % 2;
+        let headers = decode();
+        self.entries[entry] = (block, headers);
+        self.next = entry + 1;
+        headers
+    }
 }
 
 impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<T, CH, N, BLOCK> {
@@ -96,6 +132,7 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
             staged: 0,
             next_block: 0,
             blocks: 0,
+            sealed: 0,
         }
     }
 
@@ -135,38 +172,96 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         Ok(())
     }
 
-    /// The sample pushed `age` pushes ago (0 = newest), while readable.
-    pub(crate) fn get(&self, age: usize) -> Option<SVector<T, CH>> {
+    /// Where the sample of age `age` is: `Ok(index)` in the staging block,
+    /// `Err((block, first, row))` packed, in the block of identity `block`
+    /// starting at row `first`.
+    fn locate(&self, age: usize) -> Option<Result<usize, (u64, usize, usize)>> {
         if age >= self.len() {
             return None;
         }
         if age < self.staged {
-            return Some(self.staging[(self.staged - 1 - age) % BLOCK]);
+            return Some(Ok((self.staged - 1 - age) % BLOCK));
         }
         let packed_age = age - self.staged;
         let back = packed_age / BLOCK;
-        let position = BLOCK - 1 - packed_age % BLOCK;
-        let slot = (self.next_block + Self::SLOTS - 1 - back) % Self::SLOTS;
+        let slot = (self.next_block + Self::SLOTS - 1 - back % Self::SLOTS) % Self::SLOTS;
         let first = slot * BLOCK;
-        let row = self.row(first + position);
-        let mut out = SVector::<T, CH>::zeros();
-        for (c, value) in out.iter_mut().enumerate() {
-            let (offset, scale) = self.header(first, c);
-            let m = T::from_f32_exact(f32::from(row.mantissas[c % CH]));
-            *value = T::from_f32_exact(offset) + m * T::from_f32_exact(scale);
-        }
-        Some(out)
+        let block = self.sealed.wrapping_sub(1 + back as u64);
+        Some(Err((block, first, first + BLOCK - 1 - packed_age % BLOCK)))
+    }
+
+    /// Offsets and scales of every channel of the block starting at row
+    /// `first`: side words `4c..4c + 4` of the block, low half first.
+    fn headers(&self, first: usize) -> [(T, T); CH] {
+        let word = |k: usize| u32::from(self.row(first + k).side);
+        core::array::from_fn(|c| {
+            let k = 4 * c;
+            (
+                T::from_f32_exact(f32::from_bits(word(k) | word(k + 1) << 16)),
+                T::from_f32_exact(f32::from_bits(word(k + 2) | word(k + 3) << 16)),
+            )
+        })
+    }
+
+    /// The packed sample in row `row`, with its block's headers.
+    fn unpack(&self, row: usize, headers: &[(T, T); CH]) -> SVector<T, CH> {
+        let mantissas = &self.row(row).mantissas;
+        SVector::from_fn(|c, _| {
+            let (offset, scale) = headers[c % CH];
+            offset + T::from_f32_exact(f32::from(mantissas[c % CH])) * scale
+        })
+    }
+
+    /// The sample pushed `age` pushes ago (0 = newest), while readable.
+    pub(crate) fn get(&self, age: usize) -> Option<SVector<T, CH>> {
+        Some(match self.locate(age)? {
+            Ok(index) => self.staging[index % BLOCK],
+            Err((_, first, row)) => self.unpack(row, &self.headers(first)),
+        })
     }
 
     /// The Lagrange read of order `ORDER` at `delay_samples` behind the
-    /// newest sample, as [`FractionalDelayLine::read`](super::FractionalDelayLine::read).
+    /// newest sample, as [`FractionalDelayLine::read`](super::FractionalDelayLine::read);
+    /// the headers of the blocks read are decoded through `cache`. When the
+    /// stencil lies in one packed block (most reads), the mantissas are
+    /// combined first: `o + s sum_j w_j m_j`.
     pub(crate) fn read<const ORDER: usize>(
         &self,
         delay_samples: T,
+        cache: &mut HeaderCache<T, CH>,
     ) -> Result<SVector<T, CH>, Error> {
-        super::fractional_delay::lagrange_read::<T, CH, ORDER>(
+        let (s0, t) = stencil::<T, ORDER>(self.len(), delay_samples)?;
+        if let (Some(Err((block, first, newest_row))), Some(Err((oldest_block, ..)))) =
+            (self.locate(s0), self.locate(s0 + ORDER))
+            && block == oldest_block
+        {
+            let headers = cache.headers(block, || self.headers(first));
+            let (mut sum, mut weights) = ([T::zero(); CH], T::zero());
+            for j in 0..=ORDER {
+                let w = lagrange_weight::<T, ORDER>(j, t);
+                weights += w;
+                // Older samples sit in earlier rows of the block.
+                let mantissas = &self.row(newest_row.saturating_sub(j)).mantissas;
+                for (acc, &m) in sum.iter_mut().zip(mantissas) {
+                    *acc += T::from_f32_exact(f32::from(m)) * w;
+                }
+            }
+            return Ok(SVector::from_fn(|c, _| {
+                let (offset, scale) = headers[c % CH];
+                offset * weights + scale * sum[c % CH]
+            }));
+        }
+        lagrange_read::<T, CH, ORDER>(
             self.len(),
-            |age| self.get(age),
+            |age| {
+                Some(match self.locate(age)? {
+                    Ok(index) => self.staging[index % BLOCK],
+                    Err((block, first, row)) => {
+                        let headers = cache.headers(block, || self.headers(first));
+                        self.unpack(row, &headers)
+                    }
+                })
+            },
             delay_samples,
         )
     }
@@ -188,29 +283,27 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         }
     }
 
-    /// Offset and scale of channel `c` of the block starting at row `first`:
-    /// side words `4c..4c + 4` of the block, low half first.
-    fn header(&self, first: usize, c: usize) -> (f32, f32) {
-        let word = |k: usize| u32::from(self.row(first + 4 * c + k).side);
-        (
-            f32::from_bits(word(0) | word(1) << 16),
-            f32::from_bits(word(2) | word(3) << 16),
-        )
-    }
-
     /// Packs the full staging block into the next block slot.
     fn seal(&mut self) {
         let first = (self.next_block % Self::SLOTS) * BLOCK;
-        for c in 0..CH {
-            let (mut lo, mut hi) = (self.staging[0][c], self.staging[0][c]);
-            for sample in &self.staging {
-                lo = lo.min(sample[c]);
-                hi = hi.max(sample[c]);
+        // Per channel: the range, then the offset and the scale.
+        let (mut lo, mut hi) = (self.staging[0], self.staging[0]);
+        for sample in &self.staging {
+            for c in 0..CH {
+                if sample[c] < lo[c] {
+                    lo[c] = sample[c];
+                }
+                if sample[c] > hi[c] {
+                    hi[c] = sample[c];
+                }
             }
+        }
+        let mut codes = [(T::zero(), T::zero()); CH];
+        for (c, code) in codes.iter_mut().enumerate() {
             let half = T::lit(0.5);
-            let offset = (lo * half + hi * half).round_to_f32();
+            let offset = (lo[c] * half + hi[c] * half).round_to_f32();
             let offset_t = T::from_f32_exact(offset);
-            let reach = (hi - offset_t).max(offset_t - lo);
+            let reach = (hi[c] - offset_t).max(offset_t - lo[c]);
             // Dividing by 32766 rather than 32767 leaves a margin far above
             // the rounding of `scale`, so no quotient exceeds 32767.
             let mut scale = (reach / T::lit(f64::from(MANTISSA_MAX) - 1.0)).round_to_f32();
@@ -218,26 +311,33 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
                 // Constant to within 3e-26: the offset alone.
                 scale = 0.0;
             }
-            let inverse = if scale > 0.0 {
-                T::one() / T::from_f32_exact(scale)
-            } else {
-                T::zero()
-            };
-            for i in 0..BLOCK {
-                let q = ((self.staging[i][c] - offset_t) * inverse).round_to_f32();
-                let rounded = q + if q >= 0.0 { 0.5 } else { -0.5 };
-                // `as` saturates; the clamp keeps `i16::MIN` out.
-                let m = rounded.clamp(-MANTISSA_MAX, MANTISSA_MAX) as i16;
-                self.row_mut(first + i).mantissas[c % CH] = m;
-            }
+            *code = (
+                offset_t,
+                if scale > 0.0 {
+                    T::one() / T::from_f32_exact(scale)
+                } else {
+                    T::zero()
+                },
+            );
             let (o, s) = (offset.to_bits(), scale.to_bits());
             for (k, word) in [o, o >> 16, s, s >> 16].into_iter().enumerate() {
                 // Truncation to the low 16 bits intended.
                 self.row_mut(first + 4 * c + k).side = (word & 0xffff) as u16;
             }
         }
+        for i in 0..BLOCK {
+            let sample = self.staging[i];
+            let row = self.row_mut(first + i);
+            for (c, &(offset, inverse)) in codes.iter().enumerate() {
+                let q = ((sample[c] - offset) * inverse).round_to_f32();
+                let rounded = q + if q >= 0.0 { 0.5 } else { -0.5 };
+                // `as` saturates; the clamp keeps `i16::MIN` out.
+                row.mantissas[c % CH] = rounded.clamp(-MANTISSA_MAX, MANTISSA_MAX) as i16;
+            }
+        }
         self.next_block = (self.next_block + 1) % Self::SLOTS;
         self.blocks = (self.blocks + 1).min(Self::SLOTS);
+        self.sealed = self.sealed.wrapping_add(1);
         self.staged = 0;
     }
 }
@@ -323,6 +423,35 @@ mod tests {
         // A capacity that is a multiple of the block.
         round_trip::<f32, 96, 12>(&values[..150]);
         round_trip::<f64, 12, 12>(&values[..60]);
+    }
+
+    /// The Lagrange reads (headers decoded once per block) against the
+    /// unpacked line's, at delays across staging and block boundaries.
+    #[test]
+    fn lagrange_reads_match_the_unpacked_line() {
+        let values = wave(200, 5);
+        let mut packed = PackedRing::<f64, 3, 100, 12>::new();
+        let mut line = crate::delay::FractionalDelayLine::<f64, 3, 100, 3>::new();
+        for v in &values {
+            packed.push(SVector::from(*v)).unwrap();
+            line.push(SVector::from(*v)).unwrap();
+        }
+        // Within 3x a sample's bound over the whole stream's spread.
+        let spread = [0.7, 4.0e3, 1e-3];
+        let mut cache = HeaderCache::new();
+        for k in 0..=990 {
+            let d = k as f64 * 0.1;
+            let got = packed.read::<3>(d, &mut cache).unwrap();
+            let want = line.read(d).unwrap();
+            for c in 0..3 {
+                let err = (got[c] - want[c]).abs();
+                assert!(
+                    err <= 3.0 * bound::<f64>(spread[c], 1e4),
+                    "d {d} ch {c}: {err}"
+                );
+            }
+        }
+        assert!(packed.read::<3>(99.5, &mut cache).is_err());
     }
 
     #[test]

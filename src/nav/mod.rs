@@ -134,7 +134,7 @@ mod memory;
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
 pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 
-use crate::delay::packed::PackedRing;
+use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
 use crate::delay::{
     DefaultDelayLoop, DelayUpdate, MAX_INPUT_MAGNITUDE, SensorDelays, WhiteningFir,
@@ -406,6 +406,8 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// Whitened accelerometer (0..3) and gyroscope (3..6).
     /// 16-bit block floating point (`src/delay/packed.rs`).
     history: PackedRing<T, 6, HIST, HISTORY_BLOCK>,
+    /// The history's block headers decoded by the last reads.
+    history_headers: HeaderCache<T, 6>,
     /// Stored samples combined by the history's reads (a work counter).
     interpolation_taps: u64,
     /// Timestamp of every history sample.
@@ -503,6 +505,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         accel_whitening: Whitening::BLANK,
         gyro_whitening: Whitening::BLANK,
         history: PackedRing::new(),
+        history_headers: HeaderCache::new(),
         interpolation_taps: 0,
         times: SampleTimes::new(),
         forward: ForwardReckoner::new(),
@@ -901,9 +904,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let (d_f, d_w) = self.group_delays_s();
         let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
         // The whitened streams at t_h + D (the raw sensors' t_h), by time.
-        let read = |at_us: u64| {
-            let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
-            self.history.read::<HISTORY_ORDER>(d).ok()
+        let (times, history, headers) = (&self.times, &self.history, &mut self.history_headers);
+        let mut read = |at_us: u64| {
+            let d = times.delay_samples::<T>(at_us.min(t_us))?;
+            history.read::<HISTORY_ORDER>(d, headers).ok()
         };
         // Equal group delays (pass-through whitening): one read holds both.
         let a = read(t_h + us(d_f));

@@ -34,25 +34,30 @@ use crate::scalar::Scalar;
 pub(crate) const MAX_SAMPLE_STEP_US: u64 = u16::MAX as u64;
 
 /// Checkpoints of [`SampleTimes`] (a fixed count, whatever `N`).
-const CHECKPOINTS: usize = 32;
+const CHECKPOINTS: usize = 64;
 
 /// The timestamps of the last `N` IMU samples (see the module docs), kept
 /// as the 16-bit step from the previous sample (at most
 /// [`MAX_SAMPLE_STEP_US`]), the low 32 bits of every `SPACING`-th time
 /// (a checkpoint) and the newest in full. A stored time is its anchor (the
-/// next checkpoint, or the newest time) minus the steps between them: at
-/// most `SPACING` additions, `N / 30` (18 at 530 samples). A push a longer
-/// step after the newest forgets the older times.
+/// nearest newer checkpoint, or the newest time) minus the steps between
+/// them: fewer than `SPACING` subtractions, `N / 62` (9 at 530 samples).
+/// A push a longer step after the newest forgets the older times.
 #[derive(Debug, Clone)]
 pub(crate) struct SampleTimes<const N: usize> {
-    /// Step from the previous sample, µs, at push index `k % N`.
+    /// Step from the previous sample, µs, in a ring of `N`.
     steps: [u16; N],
-    /// Low 32 bits of the time of push index `j * SPACING`, at `j % CHECKPOINTS`.
-    checkpoints: [u32; CHECKPOINTS],
-    /// Push index of the next sample.
-    pushed: u64,
+    /// Where the next step is written.
+    head: usize,
     len: usize,
+    /// Low 32 bits of the checkpoint times, in a ring.
+    checkpoints: [u32; CHECKPOINTS],
+    /// Where the next checkpoint is written.
+    next_checkpoint: usize,
+    /// Samples pushed after the newest checkpoint.
+    newest_checkpoint_age: usize,
     newest: u64,
+    oldest: u64,
 }
 
 /// The low 32 bits of a time (truncation intended).
@@ -61,9 +66,9 @@ fn low_bits(t_us: u64) -> u32 {
 }
 
 impl<const N: usize> SampleTimes<N> {
-    /// Samples between checkpoints: the stored span covers at most
-    /// `CHECKPOINTS - 1` of them.
-    const SPACING: u64 = N.div_ceil(CHECKPOINTS - 2) as u64;
+    /// Samples between checkpoints: the `N` stored ones hold at most
+    /// `CHECKPOINTS - 2` of them.
+    const SPACING: usize = N.div_ceil(CHECKPOINTS - 2);
 
     pub(crate) const fn new() -> Self {
         const {
@@ -72,10 +77,13 @@ impl<const N: usize> SampleTimes<N> {
         };
         Self {
             steps: [0; N],
-            checkpoints: [0; CHECKPOINTS],
-            pushed: 0,
+            head: 0,
             len: 0,
+            checkpoints: [0; CHECKPOINTS],
+            next_checkpoint: 0,
+            newest_checkpoint_age: 0,
             newest: 0,
+            oldest: 0,
         }
     }
 
@@ -87,99 +95,93 @@ impl<const N: usize> SampleTimes<N> {
         if self.len > 0 && step > MAX_SAMPLE_STEP_US {
             self.clear();
         }
-        let k = self.pushed;
-        // Below 2^16 when stored (the check above).
-        self.steps[(k % N as u64) as usize] = if self.len > 0 { step as u16 } else { 0 };
-        if k % Self::SPACING == 0 {
-            self.checkpoints[((k / Self::SPACING) % CHECKPOINTS as u64) as usize] = low_bits(t_us);
+        // Below 2^16 when a previous sample is stored (the check above).
+        self.steps[self.head % N] = if self.len > 0 { step as u16 } else { 0 };
+        self.head = (self.head + 1) % N;
+        if self.len == 0 || self.newest_checkpoint_age + 1 >= Self::SPACING {
+            self.checkpoints[self.next_checkpoint % CHECKPOINTS] = low_bits(t_us);
+            self.next_checkpoint = (self.next_checkpoint + 1) % CHECKPOINTS;
+            self.newest_checkpoint_age = 0;
+        } else {
+            self.newest_checkpoint_age += 1;
         }
-        self.pushed += 1;
+        if self.len == 0 {
+            self.oldest = t_us;
+        } else if self.len == N {
+            // The oldest sample was overwritten: the next one is the oldest.
+            self.oldest += self.step(N - 1);
+        }
         self.len = (self.len + 1).min(N);
         self.newest = t_us;
     }
 
     pub(crate) fn clear(&mut self) {
         self.len = 0;
-        self.pushed = 0;
     }
 
-    fn step(&self, k: u64) -> u64 {
-        u64::from(self.steps[(k % N as u64) as usize])
+    /// The step from the sample of age `age + 1` to the one of age `age`.
+    fn step(&self, age: usize) -> u64 {
+        u64::from(self.steps[(self.head + 2 * N - 1 - age % N) % N])
     }
 
-    /// The time of checkpoint `j` (push index `j * SPACING`, stored).
-    fn checkpoint(&self, j: u64) -> u64 {
-        let low = self.checkpoints[(j % CHECKPOINTS as u64) as usize];
-        let behind = low_bits(self.newest).wrapping_sub(low);
-        self.newest.saturating_sub(u64::from(behind))
+    /// Checkpoints stored: those of an age below `len`.
+    fn checkpoint_count(&self) -> usize {
+        (self.len + Self::SPACING - 1 - self.newest_checkpoint_age) / Self::SPACING
     }
 
-    /// Push index of the oldest stored time (`None` when empty).
-    fn oldest_index(&self) -> Option<u64> {
-        (self.len > 0).then(|| self.pushed - self.len as u64)
-    }
-
-    /// The stored time of push index `k`: its anchor minus the steps after it.
-    fn at(&self, k: u64) -> u64 {
-        let newest_index = self.pushed - 1;
-        let anchor = ((k / Self::SPACING + 1) * Self::SPACING).min(newest_index);
-        let mut t = if anchor == newest_index {
-            self.newest
-        } else {
-            self.checkpoint(anchor / Self::SPACING)
-        };
-        for i in k + 1..=anchor {
-            t = t.saturating_sub(self.step(i));
-        }
-        t
+    /// The age and time of checkpoint `i` (0: the newest).
+    fn checkpoint(&self, i: usize) -> (usize, u64) {
+        let slot = (self.next_checkpoint + CHECKPOINTS - 1 - i % CHECKPOINTS) % CHECKPOINTS;
+        let behind = low_bits(self.newest).wrapping_sub(self.checkpoints[slot]);
+        (
+            self.newest_checkpoint_age + i * Self::SPACING,
+            self.newest.saturating_sub(u64::from(behind)),
+        )
     }
 
     /// The oldest stored time.
     pub(crate) fn oldest(&self) -> Option<u64> {
-        Some(self.at(self.oldest_index()?))
+        (self.len > 0).then_some(self.oldest)
     }
 
     /// The fractional delay, samples behind the newest, of time `t_us`;
     /// `None` outside the stored span.
     pub(crate) fn delay_samples<T: Scalar>(&self, t_us: u64) -> Option<T> {
-        let oldest = self.oldest_index()?;
-        if t_us > self.newest || t_us < self.at(oldest) {
+        let oldest = self.oldest()?;
+        if t_us > self.newest || t_us < oldest {
             return None;
         }
         if t_us == self.newest {
             return Some(T::zero());
         }
-        // The newest checkpoint at or before t (binary search over the
-        // stored ones), then forward step by step to the last time <= t.
-        let (mut lo, mut hi) = (
-            oldest.div_ceil(Self::SPACING),
-            (self.pushed - 1) / Self::SPACING,
-        );
-        let mut k = oldest;
-        while lo <= hi {
+        // The newest checkpoint at or before t (binary search: times fall
+        // as `i` grows), else the oldest sample; then newer step by step to
+        // the newest sample at or before t.
+        let (mut lo, mut hi) = (0, self.checkpoint_count());
+        while lo < hi {
             let mid = lo + (hi - lo) / 2;
-            if self.checkpoint(mid) <= t_us {
-                k = k.max(mid * Self::SPACING);
-                lo = mid + 1;
-            } else if mid == 0 {
-                break;
+            if self.checkpoint(mid).1 <= t_us {
+                hi = mid;
             } else {
-                hi = mid - 1;
+                lo = mid + 1;
             }
         }
-        let mut t_k = self.at(k);
-        // t < newest: a later sample exists.
-        while k + 1 < self.pushed {
-            let span = self.step(k + 1);
+        let (mut age, mut t_k) = if lo < self.checkpoint_count() {
+            self.checkpoint(lo)
+        } else {
+            (self.len - 1, oldest)
+        };
+        // t < newest: a newer sample exists.
+        while age > 0 {
+            let span = self.step(age - 1);
             if t_k + span > t_us {
-                let age = self.pushed - 1 - k;
                 let span = (span > 0).then_some(span)?;
                 return Some(
                     T::lit(age as f64) - T::lit((t_us - t_k) as f64) / T::lit(span as f64),
                 );
             }
             t_k += span;
-            k += 1;
+            age -= 1;
         }
         None
     }
