@@ -75,8 +75,8 @@ pub(crate) struct PackedRing<T: Scalar, const CH: usize, const N: usize, const B
     next_block: usize,
     /// Whole blocks stored.
     blocks: usize,
-    /// Blocks sealed since construction (never reset: the identity of a
-    /// block for a [`HeaderCache`]).
+    /// Blocks sealed since construction (never reset: the newest block's
+    /// identity for a [`HeaderCache`]).
     sealed: u64,
 }
 
@@ -91,10 +91,11 @@ pub(crate) struct HeaderCache<T: Scalar, const CH: usize> {
 }
 
 impl<T: Scalar, const CH: usize> HeaderCache<T, CH> {
-    /// Empty (no block has identity `u64::MAX`).
+    /// Empty (no block has identity 0: all zero bytes, a blank value in
+    /// `.bss`).
     pub(crate) const fn new() -> Self {
         Self {
-            entries: [(u64::MAX, [(T::ZERO, T::ZERO); CH]); 2],
+            entries: [(0, [(T::ZERO, T::ZERO); CH]); 2],
             next: 0,
         }
     }
@@ -186,7 +187,8 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         let back = packed_age / BLOCK;
         let slot = (self.next_block + Self::SLOTS - 1 - back % Self::SLOTS) % Self::SLOTS;
         let first = slot * BLOCK;
-        let block = self.sealed.wrapping_sub(1 + back as u64);
+        // The newest whole block is `sealed` (0 is no block).
+        let block = self.sealed.wrapping_sub(back as u64);
         Some(Err((block, first, first + BLOCK - 1 - packed_age % BLOCK)))
     }
 
@@ -212,7 +214,9 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         })
     }
 
-    /// The sample pushed `age` pushes ago (0 = newest), while readable.
+    /// The sample pushed `age` pushes ago (0 = newest), while readable
+    /// (the tests' reference; reads go through [`read`](Self::read)).
+    #[cfg(test)]
     pub(crate) fn get(&self, age: usize) -> Option<SVector<T, CH>> {
         Some(match self.locate(age)? {
             Ok(index) => self.staging[index % BLOCK],
@@ -350,7 +354,7 @@ mod tests {
     /// Round-trip error bound of one stored sample: `spread * 2^-15` of its
     /// block's channel, plus the rounding of the arithmetic (`f32` offset and
     /// scale, `T` reads) relative to the values.
-    fn bound<T: Scalar>(spread: f64, magnitude: f64) -> f64 {
+    fn bound(spread: f64, magnitude: f64) -> f64 {
         spread * 2f64.powi(-15) + 4.0 * f64::from(f32::EPSILON) * magnitude + 1e-24
     }
 
@@ -385,7 +389,7 @@ mod tests {
                             let hi = block.iter().map(|x| x[c]).fold(f64::MIN, f64::max);
                             let mag = lo.abs().max(hi.abs());
                             assert!(
-                                err <= bound::<T>(hi - lo, mag),
+                                err <= bound(hi - lo, mag),
                                 "age {age} ch {c}: {got} vs {} (block {lo}..{hi})",
                                 want[c]
                             );
@@ -445,10 +449,7 @@ mod tests {
             let want = line.read(d).unwrap();
             for c in 0..3 {
                 let err = (got[c] - want[c]).abs();
-                assert!(
-                    err <= 3.0 * bound::<f64>(spread[c], 1e4),
-                    "d {d} ch {c}: {err}"
-                );
+                assert!(err <= 3.0 * bound(spread[c], 1e4), "d {d} ch {c}: {err}");
             }
         }
         assert!(packed.read::<3>(99.5, &mut cache).is_err());

@@ -326,7 +326,7 @@ mod tests {
             state ^= state << 13;
             state ^= state >> 7;
             state ^= state << 17;
-            t += 500 + state % 3000 + if state % 97 == 0 { 60_000 } else { 0 };
+            t += 500 + state % 3000 + if state.is_multiple_of(97) { 60_000 } else { 0 };
             times.push(t);
             exact.push_front(t);
             exact.truncate(N);
