@@ -17,8 +17,8 @@
 //! # One IMU sample at time `t`
 //! 1. Whitening FIR on the accelerometer and the gyroscope (group delays
 //!    `D_f`, `D_w`; pass-through by default).
-//! 2. Both whitened streams go into one history (`FractionalDelayLine`,
-//!    `HIST` samples, cubic Lagrange).
+//! 2. Both whitened streams go into one history (`HIST` samples in 16 bits,
+//!    read by cubic Lagrange as a `FractionalDelayLine`).
 //! 3. Horizon. The delay of the GPS relative to the raw IMU is
 //!    `tau = tau_f + D_f` (the loop estimates `tau_f`, the delay relative to
 //!    the whitened accelerometer, because `a_fwd` is built from it; in fixed
@@ -112,11 +112,13 @@
 //! `HIST` (default 1100) must hold the largest delay plus the FIR group delay
 //! and the Lagrange stencil at the IMU rate ([`DelayCompensatedNav::new`]
 //! checks it): at 1 kHz and the default 1 s range, about 1030. Per sample of
-//! `HIST`: the history's 6 values and a 32-bit time, 28 bytes in `f32` and
-//! 52 in `f64`. The output predictor's ring ([`OUTPUT_ENTRIES`], one entry
-//! per stride), the delay loop and the magnetometer queue ([`MAG_QUEUE`])
-//! do not grow with `HIST`. Measured (`docs/nav.md`): 53,192 bytes in `f32`
-//! at 1100, 36,664 at 530 (1 kHz, 0.5 s), 29,560 at 256 (200 Hz, 1 s).
+//! `HIST`: the history's 6 values in 16 bits with a side word (block
+//! floating point, [`HISTORY_BLOCK`] samples a block) and a 16-bit time
+//! step, 16 bytes in `f32` and in `f64`, plus one full-precision block. The
+//! output predictor's ring ([`OUTPUT_ENTRIES`], one entry per stride), the
+//! delay loop and the magnetometer queue ([`MAG_QUEUE`]) do not grow with
+//! `HIST`. Measured (`docs/nav.md`): 41,696 bytes in `f32` at 1100, 32,584
+//! at 530 (1 kHz, 0.5 s), 28,192 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
