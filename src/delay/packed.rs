@@ -255,19 +255,19 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
                 offset * weights + scale * sum[c % CH]
             }));
         }
-        lagrange_read::<T, CH, ORDER>(
-            self.len(),
-            |age| {
-                Some(match self.locate(age)? {
-                    Ok(index) => self.staging[index % BLOCK],
-                    Err((block, first, row)) => {
-                        let headers = cache.headers(block, || self.headers(first));
-                        self.unpack(row, &headers)
-                    }
-                })
-            },
-            delay_samples,
-        )
+        lagrange_read::<T, CH, ORDER>(self.len(), |age| self.get_cached(age, cache), delay_samples)
+    }
+
+    /// The sample pushed `age` pushes ago (0 = newest), while readable, the
+    /// headers of its block decoded through `cache`.
+    fn get_cached(&self, age: usize, cache: &mut HeaderCache<T, CH>) -> Option<SVector<T, CH>> {
+        Some(match self.locate(age)? {
+            Ok(index) => self.staging[index % BLOCK],
+            Err((block, first, row)) => {
+                let headers = cache.headers(block, || self.headers(first));
+                self.unpack(row, &headers)
+            }
+        })
     }
 
     /// Row `i` of the `SLOTS * BLOCK` in use (`N` rows, then the spare ones).
