@@ -24,8 +24,8 @@
 //! header values of a block (`o` and `s` of every channel, `4 CH` words) are
 //! spread over the side words of the block's rows, hence `BLOCK >= 4 CH`.
 //! A separate header array would need `N / BLOCK` entries, a length stable
-//! Rust cannot compute from the capacity `N`. With `CH = 6` and `BLOCK = 32`
-//! that is 14 bytes a sample and 768 bytes of staging in `f32`, against 24
+//! Rust cannot compute from the capacity `N`. With `CH = 6` and `BLOCK = 24`
+//! that is 14 bytes a sample and 576 bytes of staging in `f32`, against 24
 //! bytes a sample unpacked.
 //!
 //! # Capacity

@@ -25,7 +25,7 @@ fn size_of_every_member_at_half_a_second() {
         (
             "history (and its header cache)",
             size_of_val(&nav.history) + size_of_val(&nav.history_headers),
-            8_800,
+            8_500,
         ),
         ("times", size_of_val(&nav.times), 1_400),
         ("mags", size_of_val(&nav.mags), 1_600),
@@ -51,5 +51,5 @@ fn size_of_every_member_at_half_a_second() {
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
-    assert!(total <= 32_600, "{total} B");
+    assert!(total <= 32_300, "{total} B");
 }

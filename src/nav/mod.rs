@@ -117,8 +117,8 @@
 //! step, 16 bytes in `f32` and in `f64`, plus one full-precision block. The
 //! output predictor's ring ([`OUTPUT_ENTRIES`], one entry per stride), the
 //! delay loop and the magnetometer queue ([`MAG_QUEUE`]) do not grow with
-//! `HIST`. Measured (`docs/nav.md`): 41,696 bytes in `f32` at 1100, 32,584
-//! at 530 (1 kHz, 0.5 s), 28,192 at 256 (200 Hz, 1 s).
+//! `HIST`. Measured (`docs/nav.md`): 41,392 bytes in `f32` at 1100, 32,280
+//! at 530 (1 kHz, 0.5 s), 27,888 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
@@ -166,7 +166,7 @@ pub const HISTORY_ORDER: usize = 3;
 /// IMU samples that share one offset and scale per channel in the 16-bit
 /// history (`src/delay/packed.rs`); the newest incomplete block is kept in
 /// full precision.
-pub const HISTORY_BLOCK: usize = 32;
+pub const HISTORY_BLOCK: usize = 24;
 
 /// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
 /// holds at most 52 (the delay, the filter period and one sample); a longer
