@@ -563,8 +563,9 @@ macro_rules! nav_tests {
             }
 
             /// A delay longer than the magnetometer queue spans (0.95 s of
-            /// 100 Hz samples in 64) thins the queue: fewer samples reach
-            /// the EKF, counted, but it keeps fusing them.
+            /// 100 Hz samples in 32) thins the queue: fewer samples reach
+            /// the EKF, counted, but it keeps fusing them. The spacing
+            /// doubles at each thinning, 10 -> 20 -> 40 ms: a quarter kept.
             #[test]
             fn a_delay_beyond_the_magnetometer_queue_still_fuses() {
                 let mode = DelayMode::Fixed {
@@ -588,7 +589,7 @@ macro_rules! nav_tests {
                 );
                 let dropped = nav.refusals().mag_dropped as usize;
                 assert!(
-                    dropped > mags / 4 && dropped < mags * 3 / 4,
+                    dropped > mags / 2 && dropped < mags * 7 / 8,
                     "{dropped} of {mags}"
                 );
             }
@@ -653,7 +654,17 @@ macro_rules! nav_tests {
                 let short = work_at(0.1);
                 let long = work_at(0.5);
                 assert_eq!(short.imu_samples, 5000);
-                assert_eq!(short, long);
+                // The output entries fall on the same stride whatever the
+                // delay; where the 5 s window cuts them moves one cursor
+                // move at most.
+                assert_eq!(
+                    delaynav::nav::NavWork {
+                        ring_cursor_moves: short.ring_cursor_moves,
+                        ..long
+                    },
+                    short
+                );
+                assert!(short.ring_cursor_moves.abs_diff(long.ring_cursor_moves) <= 1);
                 // One 4-tap read (equal group delays) and one propagation
                 // per sample; one EKF step per 10 samples (100 Hz filter).
                 assert_eq!(short.horizon_steps, 500);
@@ -664,9 +675,9 @@ macro_rules! nav_tests {
                 assert_eq!(work_at_filter_rate(0.1, 250.0).horizon_steps, 1250);
                 assert_eq!(short.forward_propagations, 5000);
                 assert_eq!(short.interpolation_taps, 4 * 5000);
-                // One cursor move per output entry: one every 17 samples
-                // (the 1 s range, 1025 samples with margins, in 62 intervals).
-                assert_eq!(short.ring_cursor_moves, 5000 / 17);
+                // One cursor move per output entry: one every 27 samples
+                // (the 1 s range, 1025 samples with margins, in 38 intervals).
+                assert!(short.ring_cursor_moves.abs_diff(5000 / 27) <= 1);
             }
 
             #[test]

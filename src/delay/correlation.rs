@@ -18,11 +18,11 @@
 //!
 //! # Why a sliding update
 //!
-//! A full recomputation per GPS fix costs `3 L B` products (3 x 51 x 250 =
-//! 38 250 at the defaults) for every fix. Instead every sum is updated when a
+//! A full recomputation per GPS fix costs `3 L B` products (3 x 26 x 125 =
+//! 9 750 at the defaults) for every fix. Instead every sum is updated when a
 //! grid pair arrives: add the product entering the window, subtract the one
 //! leaving it, `3 L` products each way, i.e. `Tgps / Tc` times that per fix
-//! (2 x 765 products per 10 Hz fix at 50 Hz, 25x fewer, and the same at any
+//! (2 x 195 products per 10 Hz fix at 25 Hz, 25x fewer, and the same at any
 //! delay: the shift only selects which stored `x` is used). The window sums
 //! `Sx(s), Sxx(s)` of `x` are computed by the peak search from the stored
 //! `x`, not kept per grid time: the first shift's window is summed (`B`
@@ -160,9 +160,10 @@ pub struct SlidingCorrelator<T: Scalar, const BUF: usize, const LAGS: usize, con
     multiply_adds: u64,
 }
 
-/// GPS grid samples that can wait for the IMU stream (1.28 s at 50 Hz): the
-/// caller may push a GPS fix before the IMU samples of the same instant.
-pub const PENDING_GPS_SAMPLES: usize = 64;
+/// GPS grid samples that can wait for the IMU stream (1.28 s at the default
+/// 25 Hz grid): the caller may push a GPS fix before the IMU samples of the
+/// same instant.
+pub const PENDING_GPS_SAMPLES: usize = 32;
 
 impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     SlidingCorrelator<T, BUF, LAGS, HIST>

@@ -40,9 +40,11 @@ use super::grid::MAX_GPS_DIFF_SPAN;
 use super::ring::Ring;
 use crate::scalar::{Scalar, zeros_const};
 
-/// Fix intervals kept (64: a 10 s buffer at up to 6.4 Hz; a faster GPS
-/// correlates over its last 64 intervals).
-pub const MATCHED_INTERVALS: usize = 64;
+/// Fix intervals kept (32: a 10 s buffer at up to 3.2 Hz, the rates that
+/// [`DelayLoopConfig::adapted_to_gps_rate`](super::DelayLoopConfig::adapted_to_gps_rate)
+/// sends here hold at most 15; a faster GPS correlates over its last 32
+/// intervals).
+pub const MATCHED_INTERVALS: usize = 32;
 
 /// One GPS fix interval and its mean acceleration.
 #[derive(Debug, Clone, Copy)]

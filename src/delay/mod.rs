@@ -18,7 +18,7 @@
 //! ```
 //!
 //! 1. Grid (`grid`): both streams are brought to a uniform correlation grid of
-//!    period `Tc` (default 50 Hz) with their true timestamps; the GPS
+//!    period `Tc` (default 25 Hz) with their true timestamps; the GPS
 //!    difference is time-stamped at the middle of its span, which accounts for
 //!    its `n dt / 2` lag. Both go through the same smoothing, whose lag then
 //!    cancels in the correlation.
@@ -242,7 +242,7 @@ pub struct DelayLoopConfig<T: Scalar> {
 impl<T: Scalar> Default for DelayLoopConfig<T> {
     fn default() -> Self {
         Self {
-            correlation_rate_hz: T::lit(50.0),
+            correlation_rate_hz: T::lit(25.0),
             buffer_s: T::lit(5.0),
             gps_diff_span: 2,
             smoothing_cutoff_hz: T::lit(1.0),
@@ -315,9 +315,11 @@ impl<T: Scalar> DelayLoopConfig<T> {
     /// - gap limit `max_gps_gap_s = 2.2 / rate` (a fix lost is tolerated,
     ///   two are a gap);
     /// - below 5 Hz: the GPS difference spans one fix interval
-    ///   (`gps_diff_span = 1`) and the correlation grid runs at 25 Hz, so the
-    ///   IMU history still holds the buffer, the shifts and the longer lead
-    ///   of the IMU stream over the GPS one;
+    ///   (`gps_diff_span = 1`);
+    /// - the correlation grid runs at 25 Hz (the default), at 12.5 Hz on the
+    ///   matched path (below [`MATCHED_BELOW_HZ`]), so that the IMU grid
+    ///   history of [`DefaultDelayLoop`] holds the buffer (10 s at 1 Hz), the
+    ///   shifts and the longer lead of the IMU stream over the GPS one;
     /// - the smoothing of both accelerations follows the rate,
     ///   `min(1 Hz, rate / 2.5)`: the GPS difference is already the mean
     ///   acceleration over its span (a box of `n / rate` seconds, then the
@@ -342,9 +344,15 @@ impl<T: Scalar> DelayLoopConfig<T> {
         let slow = gps_rate_hz < T::lit(5.0);
         self.max_gps_gap_s = T::lit(2.2) / gps_rate_hz;
         self.gps_diff_span = if slow { 1 } else { 2 };
-        self.correlation_rate_hz = T::lit(if slow { 25.0 } else { 50.0 });
-        self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
         self.matched_fix_intervals = gps_rate_hz < T::lit(MATCHED_BELOW_HZ);
+        // The matched path's 10 s buffer (at 1 Hz) and its longer lead fit
+        // the IMU grid history at half the grid rate.
+        self.correlation_rate_hz = T::lit(if self.matched_fix_intervals {
+            12.5
+        } else {
+            25.0
+        });
+        self.smoothing_cutoff_hz = (gps_rate_hz / T::lit(2.5)).min(T::one());
         self.buffer_s = (T::lit(10.0) / gps_rate_hz).clamp(T::lit(5.0), T::lit(10.0));
         self.reacquire_after_s = self
             .reacquire_after_s
@@ -651,11 +659,12 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     configured: bool,
 }
 
-/// A loop sized for the default configuration: 50 Hz grid, 5 s buffer
-/// (250 samples), up to 61 shifts (a range 1.2 s wide, e.g. the default
-/// 0 to 1 s, or -0.5 to 0.6 s), and 384 samples of IMU history. The work
-/// per fix follows the configured range, not this capacity.
-pub type DefaultDelayLoop<T> = DelayLoop<T, 250, 61, 384>;
+/// A loop sized for the default configuration: 25 Hz grid, 5 s buffer
+/// (125 samples), up to 31 shifts (a range 1.2 s wide, e.g. the default
+/// 0 to 1 s, or -0.5 to 0.6 s), and 192 samples of IMU history (7.7 s);
+/// [`DelayLoopConfig::adapted_to_gps_rate`] fits it at every GPS rate. The
+/// work per fix follows the configured range, not this capacity.
+pub type DefaultDelayLoop<T> = DelayLoop<T, 125, 31, 192>;
 
 impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     DelayLoop<T, BUF, LAGS, HIST>
@@ -1234,5 +1243,30 @@ mod tests {
         let mut single = [false, true, false];
         drop_inconsistent_axes(&[0.0, 0.80, 0.0], &mut single, &r);
         assert_eq!(single, [false, true, false]);
+    }
+
+    /// `DefaultDelayLoop` takes the default configuration and the adapted
+    /// one at every GPS rate from 1 to 20 Hz, with the widest ranges its 31
+    /// shifts allow (1.2 s, from 0 or from -0.6 s); one shift more is
+    /// refused.
+    #[test]
+    fn default_capacities_fit_every_adapted_rate() {
+        let mut delay_loop = DefaultDelayLoop::<f32>::BLANK;
+        delay_loop.configure(DelayLoopConfig::default()).unwrap();
+        for tenth_hz in 10..=200u16 {
+            let rate = f32::from(tenth_hz) / 10.0;
+            for (min, max) in [(0.0, 1.2), (-0.6, 0.6)] {
+                let mut config = DelayLoopConfig::<f32>::default();
+                config.fusion.delay_min_s = min;
+                config.fusion.delay_max_s = max;
+                config.fusion.initial_delay_s = 0.0;
+                let config = config.adapted_to_gps_rate(rate).unwrap();
+                let fits = delay_loop.configure(config);
+                assert!(fits.is_ok(), "{rate} Hz, {min} to {max} s: {fits:?}");
+            }
+        }
+        let mut config = DelayLoopConfig::<f32>::default();
+        config.fusion.delay_max_s = 1.24;
+        assert!(delay_loop.configure(config).is_err());
     }
 }

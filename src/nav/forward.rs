@@ -59,7 +59,7 @@
 //!
 //! The ring keeps one entry at the first IMU sample `stride_us` or more
 //! after the newest (chosen by the navigator so that `N` entries span its
-//! largest delay: 9 samples at 1 kHz for 0.5 s), not one per sample; a
+//! largest delay: 14 samples at 1 kHz for 0.5 s), not one per sample; a
 //! stride in time, not in samples, keeps the spacing when the IMU rate
 //! drops. One entry per sample is not needed: the horizon moves at the filter rate, and the interpolation
 //! above errs by `O(h^4)` in the spacing `h` (a linear one would cost

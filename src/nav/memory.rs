@@ -19,16 +19,16 @@ fn size_of_every_member_at_half_a_second() {
         (
             "forward (output predictor)",
             size_of_val(&nav.forward),
-            3_400,
+            2_200,
         ),
-        ("delay_loop", size_of_val(&nav.delay_loop), 14_000),
+        ("delay_loop", size_of_val(&nav.delay_loop), 7_700),
         (
             "history (and its header cache)",
             size_of_val(&nav.history) + size_of_val(&nav.history_headers),
             8_500,
         ),
         ("times", size_of_val(&nav.times), 1_400),
-        ("mags", size_of_val(&nav.mags), 1_600),
+        ("mags", size_of_val(&nav.mags), 800),
         ("ekf", size_of_val(&nav.ekf), 2_100),
         ("config", size_of_val(&nav.config), 400),
         ("last_update", size_of_val(&nav.last_update), 400),
@@ -45,11 +45,11 @@ fn size_of_every_member_at_half_a_second() {
         println!("{name}: {bytes} B");
         assert!(bytes <= bound, "{name}: {bytes} B > {bound} B");
     }
-    let correlator = size_of::<crate::delay::SlidingCorrelator<f32, 250, 61, 384>>();
-    println!("  of which the delay loop's SlidingCorrelator<f32, 250, 61, 384>: {correlator} B");
-    assert!(correlator <= 11_000);
+    let correlator = size_of::<crate::delay::SlidingCorrelator<f32, 125, 31, 192>>();
+    println!("  of which the delay loop's SlidingCorrelator<f32, 125, 31, 192>: {correlator} B");
+    assert!(correlator <= 5_600);
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
-    assert!(total <= 32_300, "{total} B");
+    assert!(total <= 24_100, "{total} B");
 }

@@ -117,8 +117,8 @@
 //! step, 16 bytes in `f32` and in `f64`, plus one full-precision block. The
 //! output predictor's ring ([`OUTPUT_ENTRIES`], one entry per stride), the
 //! delay loop and the magnetometer queue ([`MAG_QUEUE`]) do not grow with
-//! `HIST`. Measured (`docs/nav.md`): 41,392 bytes in `f32` at 1100, 32,280
-//! at 530 (1 kHz, 0.5 s), 27,888 at 256 (200 Hz, 1 s).
+//! `HIST`. Measured (`docs/nav.md`): 33,160 bytes in `f32` at 1100, 24,048
+//! at 530 (1 kHz, 0.5 s), 19,656 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
@@ -168,16 +168,19 @@ pub const HISTORY_ORDER: usize = 3;
 /// full precision.
 pub const HISTORY_BLOCK: usize = 24;
 
-/// Magnetometer samples waiting for the horizon: at 100 Hz, a 0.5 s delay
-/// holds at most 52 (the delay, the filter period and one sample); a longer
+/// Magnetometer samples waiting for the horizon: at 100 Hz, a delay up to
+/// 0.3 s (with the filter period and one sample: 32 samples) fits; a longer
 /// delay or a faster magnetometer fills it, and a full queue is thinned to
-/// every other sample (module docs).
-pub const MAG_QUEUE: usize = 64;
+/// every other sample (module docs): at 0.5 s the magnetometer is fused at
+/// 50 Hz.
+pub const MAG_QUEUE: usize = 32;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
 /// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
-/// spans the largest delay (9 samples at 1 kHz and 0.5 s).
-pub const OUTPUT_ENTRIES: usize = 64;
+/// spans the largest delay (14 samples at 1 kHz and 0.5 s, 27 at the default
+/// 1 s range; 32 entries, 35 samples apart, cost the `high` scenario's roll
+/// 3 %: docs/PERFORMANCE.md).
+pub const OUTPUT_ENTRIES: usize = 40;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
