@@ -16,6 +16,11 @@ pub trait Scalar: RealField + Copy + Default + core::fmt::Debug + 'static {
     fn lit(x: f64) -> Self;
     /// The value as `f64` (exact for both precisions).
     fn as_f64(self) -> f64;
+    /// An `f32` value (exact for both precisions; no software `f64` on an
+    /// FPU without it).
+    fn from_f32_exact(x: f32) -> Self;
+    /// The value rounded to `f32` (exact for `f32`).
+    fn round_to_f32(self) -> f32;
     /// Machine epsilon of the precision.
     const EPS: Self;
     /// Zero, usable in `const` items (the blank values of the estimators).
@@ -39,6 +44,14 @@ impl Scalar for f32 {
     #[inline]
     fn as_f64(self) -> f64 {
         self as f64
+    }
+    #[inline]
+    fn from_f32_exact(x: f32) -> Self {
+        x
+    }
+    #[inline]
+    fn round_to_f32(self) -> f32 {
+        self
     }
     const EPS: Self = f32::EPSILON;
     const ZERO: Self = 0.0;
@@ -66,6 +79,14 @@ impl Scalar for f64 {
     #[inline]
     fn as_f64(self) -> f64 {
         self
+    }
+    #[inline]
+    fn from_f32_exact(x: f32) -> Self {
+        x as f64
+    }
+    #[inline]
+    fn round_to_f32(self) -> f32 {
+        self as f32
     }
     const EPS: Self = f64::EPSILON;
     const ZERO: Self = 0.0;

@@ -149,53 +149,13 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
         (self.ring.len() > ORDER).then(|| self.ring.len() - 1)
     }
 
-    /// Stencil start and local position `t = d - s0` for a delay.
-    fn stencil(&self, delay_samples: T) -> Result<(usize, T), Error> {
-        if !delay_samples.is_finite() {
-            return Err(Error::NonFinite {
-                field: "delay_line.delay",
-            });
-        }
-        if delay_samples < T::zero() {
-            return Err(Error::OutOfRange {
-                field: "delay_line.delay",
-                reason: "a delay cannot be negative",
-            });
-        }
-        let len = self.ring.len();
-        let beyond = || Error::DelayBeyondHistory {
-            requested_samples: delay_samples.as_f64() as u64 + 1,
-            stored_samples: len as u64,
-        };
-        if len <= ORDER || delay_samples > T::lit((len - 1) as f64) {
-            return Err(beyond());
-        }
-        let whole = delay_samples.floor().as_f64() as usize;
-        let s0 = whole.saturating_sub((ORDER - 1) / 2).min(len - 1 - ORDER);
-        Ok((s0, delay_samples - T::lit(s0 as f64)))
-    }
-
     /// The sample at `delay_samples` (>= 0, fractional) behind the newest one.
     ///
     /// Errors: non-finite or negative delay; [`Error::DelayBeyondHistory`]
     /// when fewer than `ORDER + 1` samples are stored or the delay exceeds
     /// `len - 1`.
     pub fn read(&self, delay_samples: T) -> Result<SVector<T, CH>, Error> {
-        let (s0, t) = self.stencil(delay_samples)?;
-        let mut out = SVector::<T, CH>::zeros();
-        for j in 0..=ORDER {
-            let mut w = T::one();
-            for m in 0..=ORDER {
-                if m != j {
-                    w *= (t - T::lit(m as f64)) / (T::lit(j as f64) - T::lit(m as f64));
-                }
-            }
-            // s0 + j <= len - 1 by construction of the stencil.
-            if let Some(x) = self.ring.get(s0 + j) {
-                out += x * w;
-            }
-        }
-        Ok(out)
+        lagrange_read::<T, CH, ORDER>(self.ring.len(), |age| self.ring.get(age), delay_samples)
     }
 
     /// The sample `delay_s` seconds behind the newest one, for a uniform
@@ -220,7 +180,7 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
     /// `amplitude` band-limited to `omega_h` radians per sample. `None` when
     /// the read itself would be refused.
     pub fn error_bound(&self, delay_samples: T, amplitude: T, omega_h: T) -> Option<T> {
-        let (_, t) = self.stencil(delay_samples).ok()?;
+        let (_, t) = stencil::<T, ORDER>(self.ring.len(), delay_samples).ok()?;
         let mut node_product = T::one();
         let mut factorial = T::one();
         for j in 0..=ORDER {
@@ -229,6 +189,65 @@ impl<T: Scalar, const CH: usize, const N: usize, const ORDER: usize>
         }
         Some(amplitude * omega_h.abs().powi((ORDER + 1) as i32) / factorial * node_product)
     }
+}
+
+/// Stencil start and local position `t = d - s0` of a read at
+/// `delay_samples` from `len` stored samples (module docs).
+pub(crate) fn stencil<T: Scalar, const ORDER: usize>(
+    len: usize,
+    delay_samples: T,
+) -> Result<(usize, T), Error> {
+    if !delay_samples.is_finite() {
+        return Err(Error::NonFinite {
+            field: "delay_line.delay",
+        });
+    }
+    if delay_samples < T::zero() {
+        return Err(Error::OutOfRange {
+            field: "delay_line.delay",
+            reason: "a delay cannot be negative",
+        });
+    }
+    let beyond = || Error::DelayBeyondHistory {
+        requested_samples: delay_samples.as_f64() as u64 + 1,
+        stored_samples: len as u64,
+    };
+    if len <= ORDER || delay_samples > T::lit((len - 1) as f64) {
+        return Err(beyond());
+    }
+    let whole = delay_samples.floor().as_f64() as usize;
+    let s0 = whole.saturating_sub((ORDER - 1) / 2).min(len - 1 - ORDER);
+    Ok((s0, delay_samples - T::lit(s0 as f64)))
+}
+
+/// The Lagrange read of order `ORDER` at `delay_samples` from `len` samples
+/// stored by age (`get(0)` the newest): the read of both delay lines,
+/// [`FractionalDelayLine`] and the navigator's 16-bit one.
+pub(crate) fn lagrange_read<T: Scalar, const CH: usize, const ORDER: usize>(
+    len: usize,
+    mut get: impl FnMut(usize) -> Option<SVector<T, CH>>,
+    delay_samples: T,
+) -> Result<SVector<T, CH>, Error> {
+    let (s0, t) = stencil::<T, ORDER>(len, delay_samples)?;
+    let mut out = SVector::<T, CH>::zeros();
+    for j in 0..=ORDER {
+        // s0 + j <= len - 1 by construction of the stencil.
+        if let Some(x) = get(s0 + j) {
+            out += x * lagrange_weight::<T, ORDER>(j, t);
+        }
+    }
+    Ok(out)
+}
+
+/// The weight `w_j(t)` of node `j` (module docs).
+pub(crate) fn lagrange_weight<T: Scalar, const ORDER: usize>(j: usize, t: T) -> T {
+    let mut w = T::one();
+    for m in 0..=ORDER {
+        if m != j {
+            w *= (t - T::lit(m as f64)) / (T::lit(j as f64) - T::lit(m as f64));
+        }
+    }
+    w
 }
 
 /// The long-run mean sample period of a stream, from its timestamps:

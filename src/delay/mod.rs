@@ -88,6 +88,7 @@ pub mod fractional_delay;
 pub mod gain_fusion;
 mod grid;
 mod matched;
+pub(crate) mod packed;
 pub(crate) mod ring;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};

@@ -17,8 +17,8 @@
 //! # One IMU sample at time `t`
 //! 1. Whitening FIR on the accelerometer and the gyroscope (group delays
 //!    `D_f`, `D_w`; pass-through by default).
-//! 2. Both whitened streams go into one history (`FractionalDelayLine`,
-//!    `HIST` samples, cubic Lagrange).
+//! 2. Both whitened streams go into one history (`HIST` samples in 16 bits,
+//!    read by cubic Lagrange as a `FractionalDelayLine`).
 //! 3. Horizon. The delay of the GPS relative to the raw IMU is
 //!    `tau = tau_f + D_f` (the loop estimates `tau_f`, the delay relative to
 //!    the whitened accelerometer, because `a_fwd` is built from it; in fixed
@@ -112,11 +112,13 @@
 //! `HIST` (default 1100) must hold the largest delay plus the FIR group delay
 //! and the Lagrange stencil at the IMU rate ([`DelayCompensatedNav::new`]
 //! checks it): at 1 kHz and the default 1 s range, about 1030. Per sample of
-//! `HIST`: the history's 6 values and a 32-bit time, 28 bytes in `f32` and
-//! 52 in `f64`. The output predictor's ring ([`OUTPUT_ENTRIES`], one entry
-//! per stride), the delay loop and the magnetometer queue ([`MAG_QUEUE`])
-//! do not grow with `HIST`. Measured (`docs/nav.md`): 45,032 bytes in `f32`
-//! at 1100, 29,072 at 530 (1 kHz, 0.5 s), 21,400 at 256 (200 Hz, 1 s).
+//! `HIST`: the history's 6 values in 16 bits with a side word (block
+//! floating point, [`HISTORY_BLOCK`] samples a block) and a 16-bit time
+//! step, 16 bytes in `f32` and in `f64`, plus one full-precision block. The
+//! output predictor's ring ([`OUTPUT_ENTRIES`], one entry per stride), the
+//! delay loop and the magnetometer queue ([`MAG_QUEUE`]) do not grow with
+//! `HIST`. Measured (`docs/nav.md`): 33,160 bytes in `f32` at 1100, 24,048
+//! at 530 (1 kHz, 0.5 s), 19,656 at 256 (200 Hz, 1 s).
 //!
 //! On a microcontroller, put [`DelayCompensatedNav::BLANK`] (a `const`) in
 //! a `static` and [`configure`](DelayCompensatedNav::configure) it there:
@@ -134,10 +136,10 @@ mod memory;
 pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
 pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 
+use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
 use crate::delay::{
-    DefaultDelayLoop, DelayUpdate, FractionalDelayLine, MAX_INPUT_MAGNITUDE, SensorDelays,
-    WhiteningFir,
+    DefaultDelayLoop, DelayUpdate, MAX_INPUT_MAGNITUDE, SensorDelays, WhiteningFir,
 };
 use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::nav_core::check_position_kind;
@@ -156,10 +158,15 @@ use crate::zero_option::ZeroOption;
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
-use timeline::{ClockRefusal, SampleTimes, StreamClock};
+use timeline::{ClockRefusal, MAX_SAMPLE_STEP_US, SampleTimes, StreamClock};
 
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
+
+/// IMU samples that share one offset and scale per channel in the 16-bit
+/// history (`src/delay/packed.rs`); the newest incomplete block is kept in
+/// full precision.
+pub const HISTORY_BLOCK: usize = 24;
 
 /// Magnetometer samples waiting for the horizon: at 100 Hz, a delay up to
 /// 0.3 s (with the filter period and one sample: 32 samples) fits; a longer
@@ -211,7 +218,8 @@ pub struct NavRefusals {
     /// IMU samples stamped more than `max_time_jump_us` ahead and not
     /// confirmed by the next sample.
     pub imu_ahead: u32,
-    /// IMU gaps longer than the EKF's `max_imu_step_us` (history restarted).
+    /// IMU gaps longer than the EKF's `max_imu_step_us` or than the
+    /// history's 65,535 µs step (history restarted).
     pub imu_gap: u32,
     /// GPS fixes with a non-finite or implausible value.
     pub gps_invalid: u32,
@@ -401,7 +409,10 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     accel_whitening: Whitening<T>,
     gyro_whitening: Whitening<T>,
     /// Whitened accelerometer (0..3) and gyroscope (3..6).
-    history: FractionalDelayLine<T, 6, HIST, HISTORY_ORDER>,
+    /// 16-bit block floating point (`src/delay/packed.rs`).
+    history: PackedRing<T, 6, HIST, HISTORY_BLOCK>,
+    /// The history's block headers decoded by the last reads.
+    history_headers: HeaderCache<T, 6>,
     /// Stored samples combined by the history's reads (a work counter).
     interpolation_taps: u64,
     /// Timestamp of every history sample.
@@ -498,7 +509,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         delay_loop: DefaultDelayLoop::BLANK,
         accel_whitening: Whitening::BLANK,
         gyro_whitening: Whitening::BLANK,
-        history: FractionalDelayLine::new(),
+        history: PackedRing::new(),
+        history_headers: HeaderCache::new(),
         interpolation_taps: 0,
         times: SampleTimes::new(),
         forward: ForwardReckoner::new(),
@@ -858,7 +870,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// does not move (or cannot be read yet).
     fn horizon_target(&self, t_us: u64, dt_us: u64) -> Option<u64> {
         let target = t_us.checked_sub(self.delay_us())?;
-        self.history.max_delay_samples()?;
+        if self.history.len() <= HISTORY_ORDER {
+            return None;
+        }
         let oldest = self.times.oldest()?;
         let Some(horizon) = self.horizon_us() else {
             return Some(target);
@@ -895,9 +909,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let (d_f, d_w) = self.group_delays_s();
         let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
         // The whitened streams at t_h + D (the raw sensors' t_h), by time.
-        let read = |at_us: u64| {
-            let d = self.times.delay_samples::<T>(at_us.min(t_us))?;
-            self.history.read(d).ok()
+        let (times, history, headers) = (&self.times, &self.history, &mut self.history_headers);
+        let mut read = |at_us: u64| {
+            let d = times.delay_samples::<T>(at_us.min(t_us))?;
+            history.read::<HISTORY_ORDER>(d, headers).ok()
         };
         // Equal group delays (pass-through whitening): one read holds both.
         let a = read(t_h + us(d_f));
@@ -1138,7 +1153,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
-        if gap {
+        // A step the history's 16-bit sample times cannot hold restarts the
+        // history too (the EKF integrates it as usual).
+        if gap || dt_us > MAX_SAMPLE_STEP_US {
             bump(&mut self.refusals.imu_gap);
             self.last_reset = ZeroOption::Some(ResetRecord {
                 t_us: Some(s.t_us),
@@ -1154,7 +1171,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let mut channels = SVector::<T, 6>::zeros();
         channels.fixed_rows_mut::<3>(0).copy_from(&accel);
         channels.fixed_rows_mut::<3>(3).copy_from(&gyro);
-        // Finite by the checks above: the line cannot refuse it.
+        // Finite and bounded by the checks above: the history cannot refuse it.
         let _ = self.history.push(channels);
         self.times.push(s.t_us);
         self.imu_samples += 1;

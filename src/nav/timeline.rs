@@ -26,19 +26,38 @@
 //! one future-stamped sample never blocks the stream. GPS and magnetometer
 //! samples more than the bound after the newest IMU sample are refused.
 
-use crate::delay::ring::Ring;
 use crate::error::Error;
 use crate::scalar::Scalar;
 
+/// The longest step between two stored samples, µs: a step is stored in
+/// 16 bits. The navigator restarts the history on a longer IMU gap.
+pub(crate) const MAX_SAMPLE_STEP_US: u64 = u16::MAX as u64;
+
+/// Checkpoints of [`SampleTimes`] (a fixed count, whatever `N`).
+const CHECKPOINTS: usize = 64;
+
 /// The timestamps of the last `N` IMU samples (see the module docs), kept
-/// as the low 32 bits of each (half the bytes of a `u64`) and the newest
-/// in full: a stored time is the newest minus the wrapping difference of
-/// the low bits, exact while the stored span is below `2^32` µs (71 min).
-/// A push that would stretch the span beyond that forgets the older times.
+/// as the 16-bit step from the previous sample (at most
+/// [`MAX_SAMPLE_STEP_US`]), the low 32 bits of every `SPACING`-th time
+/// (a checkpoint) and the newest in full. A stored time is its anchor (the
+/// nearest newer checkpoint, or the newest time) minus the steps between
+/// them: fewer than `SPACING` subtractions, `N / 62` (9 at 530 samples).
+/// A push a longer step after the newest forgets the older times.
 #[derive(Debug, Clone)]
 pub(crate) struct SampleTimes<const N: usize> {
-    low_bits: Ring<u32, N>,
+    /// Step from the previous sample, µs, in a ring of `N`.
+    steps: [u16; N],
+    /// Where the next step is written.
+    head: usize,
+    len: usize,
+    /// Low 32 bits of the checkpoint times, in a ring.
+    checkpoints: [u32; CHECKPOINTS],
+    /// Where the next checkpoint is written.
+    next_checkpoint: usize,
+    /// Samples pushed after the newest checkpoint.
+    newest_checkpoint_age: usize,
     newest: u64,
+    oldest: u64,
 }
 
 /// The low 32 bits of a time (truncation intended).
@@ -47,63 +66,124 @@ fn low_bits(t_us: u64) -> u32 {
 }
 
 impl<const N: usize> SampleTimes<N> {
+    /// Samples between checkpoints: the `N` stored ones hold at most
+    /// `CHECKPOINTS - 2` of them.
+    const SPACING: usize = N.div_ceil(CHECKPOINTS - 2);
+
     pub(crate) const fn new() -> Self {
+        const {
+            // The span (at most N steps of 65 ms) stays below 2^32 µs.
+            assert!(N > 0 && N < 65_536, "1 to 65535 sample times");
+        };
         Self {
-            low_bits: Ring::new(0),
+            steps: [0; N],
+            head: 0,
+            len: 0,
+            checkpoints: [0; CHECKPOINTS],
+            next_checkpoint: 0,
+            newest_checkpoint_age: 0,
             newest: 0,
+            oldest: 0,
         }
     }
 
+    /// Appends the newest time (later than the previous one: the clock
+    /// check); a step beyond [`MAX_SAMPLE_STEP_US`] first forgets the older
+    /// times.
     pub(crate) fn push(&mut self, t_us: u64) {
-        if self
-            .oldest()
-            .is_some_and(|oldest| t_us.saturating_sub(oldest) > u64::from(u32::MAX))
-        {
-            self.low_bits.clear();
+        let step = t_us.saturating_sub(self.newest);
+        if self.len > 0 && step > MAX_SAMPLE_STEP_US {
+            self.clear();
         }
-        self.low_bits.push(low_bits(t_us));
+        // Below 2^16 when a previous sample is stored (the check above).
+        self.steps[self.head % N] = if self.len > 0 { step as u16 } else { 0 };
+        self.head = (self.head + 1) % N;
+        if self.len == 0 || self.newest_checkpoint_age + 1 >= Self::SPACING {
+            self.checkpoints[self.next_checkpoint % CHECKPOINTS] = low_bits(t_us);
+            self.next_checkpoint = (self.next_checkpoint + 1) % CHECKPOINTS;
+            self.newest_checkpoint_age = 0;
+        } else {
+            self.newest_checkpoint_age += 1;
+        }
+        if self.len == 0 {
+            self.oldest = t_us;
+        } else if self.len == N {
+            // The oldest sample was overwritten: the next one is the oldest.
+            self.oldest += self.step(N - 1);
+        }
+        self.len = (self.len + 1).min(N);
         self.newest = t_us;
     }
 
     pub(crate) fn clear(&mut self) {
-        self.low_bits.clear();
+        self.len = 0;
     }
 
-    /// The stored time of age `age` (0: the newest).
-    fn get(&self, age: usize) -> Option<u64> {
-        let low = self.low_bits.get(age)?;
-        let behind = low_bits(self.newest).wrapping_sub(low);
-        self.newest.checked_sub(u64::from(behind))
+    /// The step from the sample of age `age + 1` to the one of age `age`.
+    fn step(&self, age: usize) -> u64 {
+        u64::from(self.steps[(self.head + 2 * N - 1 - age % N) % N])
+    }
+
+    /// Checkpoints stored: those of an age below `len`.
+    fn checkpoint_count(&self) -> usize {
+        (self.len + Self::SPACING - 1 - self.newest_checkpoint_age) / Self::SPACING
+    }
+
+    /// The age and time of checkpoint `i` (0: the newest).
+    fn checkpoint(&self, i: usize) -> (usize, u64) {
+        let slot = (self.next_checkpoint + CHECKPOINTS - 1 - i % CHECKPOINTS) % CHECKPOINTS;
+        let behind = low_bits(self.newest).wrapping_sub(self.checkpoints[slot]);
+        (
+            self.newest_checkpoint_age + i * Self::SPACING,
+            self.newest.saturating_sub(u64::from(behind)),
+        )
     }
 
     /// The oldest stored time.
     pub(crate) fn oldest(&self) -> Option<u64> {
-        self.get(self.low_bits.len().checked_sub(1)?)
+        (self.len > 0).then_some(self.oldest)
     }
 
     /// The fractional delay, samples behind the newest, of time `t_us`;
     /// `None` outside the stored span.
     pub(crate) fn delay_samples<T: Scalar>(&self, t_us: u64) -> Option<T> {
-        let newest = self.get(0)?;
-        if t_us > newest || t_us < self.oldest()? {
+        let oldest = self.oldest()?;
+        if t_us > self.newest || t_us < oldest {
             return None;
         }
-        if t_us == newest {
+        if t_us == self.newest {
             return Some(T::zero());
         }
-        // Smallest age whose time is <= t: times fall with age.
-        let (mut lo, mut hi) = (1usize, self.low_bits.len() - 1);
+        // The newest checkpoint at or before t (binary search: times fall
+        // as `i` grows), else the oldest sample; then newer step by step to
+        // the newest sample at or before t.
+        let (mut lo, mut hi) = (0, self.checkpoint_count());
         while lo < hi {
             let mid = lo + (hi - lo) / 2;
-            if self.get(mid)? <= t_us {
+            if self.checkpoint(mid).1 <= t_us {
                 hi = mid;
             } else {
                 lo = mid + 1;
             }
         }
-        let (t_k, t_next) = (self.get(lo)?, self.get(lo - 1)?);
-        let span = t_next.checked_sub(t_k).filter(|&s| s > 0)?;
-        Some(T::lit(lo as f64) - T::lit((t_us - t_k) as f64) / T::lit(span as f64))
+        let (mut age, mut t_k) = if lo < self.checkpoint_count() {
+            self.checkpoint(lo)
+        } else {
+            (self.len - 1, oldest)
+        };
+        // t < newest: a newer sample exists.
+        while age > 0 {
+            let span = self.step(age - 1);
+            if t_k + span > t_us {
+                let span = (span > 0).then_some(span)?;
+                return Some(
+                    T::lit(age as f64) - T::lit((t_us - t_k) as f64) / T::lit(span as f64),
+                );
+            }
+            t_k += span;
+            age -= 1;
+        }
+        None
     }
 }
 
@@ -232,6 +312,58 @@ mod tests {
         times.push(base + (1 << 32) + 3000);
         assert_eq!(times.oldest(), Some(base + (1 << 32) + 3000));
         assert_eq!(times.delay_samples::<f64>(base + 5000), None);
+    }
+
+    /// Every read against the exact times, after every push, through
+    /// irregular steps, many checkpoint cycles and a capacity that is not
+    /// a multiple of the checkpoint spacing.
+    fn matches_the_exact_times<const N: usize>() {
+        let mut times = SampleTimes::<N>::new();
+        let mut exact = std::collections::VecDeque::new();
+        let mut t = (1u64 << 32) - 40_000;
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..(5 * N + 77) {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            t += 500 + state % 3000 + if state.is_multiple_of(97) { 60_000 } else { 0 };
+            times.push(t);
+            exact.push_front(t);
+            exact.truncate(N);
+            assert_eq!(times.oldest(), exact.back().copied());
+            for age in 0..exact.len() {
+                let when = exact[age];
+                assert_eq!(times.delay_samples::<f64>(when), Some(age as f64));
+                if age > 0 {
+                    let later = exact[age - 1];
+                    let mid = when + (later - when) / 4;
+                    let want = age as f64 - (mid - when) as f64 / (later - when) as f64;
+                    assert_eq!(times.delay_samples::<f64>(mid), Some(want));
+                }
+            }
+            assert_eq!(times.delay_samples::<f64>(t + 1), None);
+            assert_eq!(times.delay_samples::<f64>(exact.back().unwrap() - 1), None);
+        }
+    }
+
+    #[test]
+    fn steps_and_checkpoints_give_the_exact_times() {
+        matches_the_exact_times::<1>();
+        matches_the_exact_times::<7>();
+        matches_the_exact_times::<61>();
+        matches_the_exact_times::<530>();
+    }
+
+    #[test]
+    fn a_step_beyond_16_bits_forgets_the_older_times() {
+        let mut times = SampleTimes::<8>::new();
+        for t in [0, 1000, 66_535] {
+            times.push(t);
+        }
+        assert_eq!(times.oldest(), Some(0));
+        times.push(66_535 + MAX_SAMPLE_STEP_US + 1);
+        assert_eq!(times.oldest(), Some(66_535 + MAX_SAMPLE_STEP_US + 1));
+        assert_eq!(times.delay_samples::<f64>(66_535), None);
     }
 
     #[test]
