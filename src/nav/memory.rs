@@ -27,7 +27,7 @@ fn size_of_every_member_at_half_a_second() {
             size_of_val(&nav.history) + size_of_val(&nav.history_headers),
             8_500,
         ),
-        ("times", size_of_val(&nav.times), 1_400),
+        ("times", size_of_val(&nav.times), 1_450),
         ("mags", size_of_val(&nav.mags), 800),
         ("ekf", size_of_val(&nav.ekf), 2_100),
         ("config", size_of_val(&nav.config), 400),
@@ -51,5 +51,5 @@ fn size_of_every_member_at_half_a_second() {
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
-    assert!(total <= 24_100, "{total} B");
+    assert!(total <= 24_200, "{total} B");
 }

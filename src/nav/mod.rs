@@ -158,7 +158,7 @@ use crate::zero_option::ZeroOption;
 use forward::ForwardReckoner;
 use health::{GPS_STALE_US, HEADING_STALE_US, MAX_POSITION_STD_M, MAX_VELOCITY_STD_M_S};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
-use timeline::{ClockRefusal, MAX_SAMPLE_STEP_US, SampleTimes, StreamClock};
+use timeline::{ClockRefusal, SampleTimes, StreamClock};
 
 /// Lagrange order of the IMU history reads (cubic).
 pub const HISTORY_ORDER: usize = 3;
@@ -219,7 +219,7 @@ pub struct NavRefusals {
     /// confirmed by the next sample.
     pub imu_ahead: u32,
     /// IMU gaps longer than the EKF's `max_imu_step_us` or than the
-    /// history's 65,535 µs step (history restarted).
+    /// history's longest step, `u32::MAX / HIST` µs (history restarted).
     pub imu_gap: u32,
     /// GPS fixes with a non-finite or implausible value.
     pub gps_invalid: u32,
@@ -1153,9 +1153,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
-        // A step the history's 16-bit sample times cannot hold restarts the
-        // history too (the EKF integrates it as usual).
-        if gap || dt_us > MAX_SAMPLE_STEP_US {
+        // A step the history's sample times cannot hold (8.1 s at 530
+        // samples) restarts the history too (the EKF integrates it as usual).
+        if gap || dt_us >= SampleTimes::<HIST>::MAX_STEP_US {
             bump(&mut self.refusals.imu_gap);
             self.last_reset = ZeroOption::Some(ResetRecord {
                 t_us: Some(s.t_us),

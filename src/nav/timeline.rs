@@ -29,24 +29,35 @@
 use crate::error::Error;
 use crate::scalar::Scalar;
 
-/// The longest step between two stored samples, µs: a step is stored in
-/// 16 bits. The navigator restarts the history on a longer IMU gap.
-pub(crate) const MAX_SAMPLE_STEP_US: u64 = u16::MAX as u64;
+/// Steps of [`u16::MAX`] µs and longer (a dropout of a few samples at
+/// 50 Hz) are kept exactly in a side ring of this many; one more forgets
+/// the times older than the oldest of them.
+const LONG_STEPS: usize = 8;
 
 /// Checkpoints of [`SampleTimes`] (a fixed count, whatever `N`).
 const CHECKPOINTS: usize = 64;
 
 /// The timestamps of the last `N` IMU samples (see the module docs), kept
-/// as the 16-bit step from the previous sample (at most
-/// [`MAX_SAMPLE_STEP_US`]), the low 32 bits of every `SPACING`-th time
-/// (a checkpoint) and the newest in full. A stored time is its anchor (the
-/// nearest newer checkpoint, or the newest time) minus the steps between
-/// them: fewer than `SPACING` subtractions, `N / 62` (9 at 530 samples).
-/// A push a longer step after the newest forgets the older times.
+/// as the 16-bit step from the previous sample (a step of [`u16::MAX`] µs
+/// or more is marked so and kept whole in a ring of the last
+/// [`LONG_STEPS`], by the push count of its sample), the low 32 bits of
+/// every `SPACING`-th time (a checkpoint) and the newest in full. A stored
+/// time is its anchor (the nearest newer checkpoint, or the newest time)
+/// minus the steps between them: fewer than `SPACING` subtractions,
+/// `N / 62` (9 at 530 samples). A step of [`Self::MAX_STEP_US`] or more
+/// forgets the older times (the span must stay within 32 bits), and so
+/// does a long step whose slot in the ring is taken by a newer one.
 #[derive(Debug, Clone)]
 pub(crate) struct SampleTimes<const N: usize> {
-    /// Step from the previous sample, µs, in a ring of `N`.
+    /// Step from the previous sample, µs, in a ring of `N`; `u16::MAX`: a
+    /// long step, in `long_steps`.
     steps: [u16; N],
+    /// Long steps, µs, and the push count of their sample, in a ring.
+    long_steps: [(u32, u32); LONG_STEPS],
+    /// Where the next long step is written.
+    next_long_step: usize,
+    /// Samples pushed since the start, wrapping (names the long steps).
+    pushes: u32,
     /// Where the next step is written.
     head: usize,
     len: usize,
@@ -72,11 +83,13 @@ impl<const N: usize> SampleTimes<N> {
 
     pub(crate) const fn new() -> Self {
         const {
-            // The span (at most N steps of 65 ms) stays below 2^32 µs.
             assert!(N > 0 && N < 65_536, "1 to 65535 sample times");
         };
         Self {
             steps: [0; N],
+            long_steps: [(0, 0); LONG_STEPS],
+            next_long_step: 0,
+            pushes: 0,
             head: 0,
             len: 0,
             checkpoints: [0; CHECKPOINTS],
@@ -87,16 +100,40 @@ impl<const N: usize> SampleTimes<N> {
         }
     }
 
+    /// The longest step kept, µs: `N` steps of it span less than 2^32 µs
+    /// (the checkpoints' low bits); 8.1 s at 530 samples.
+    pub(crate) const MAX_STEP_US: u64 = u32::MAX as u64 / N as u64;
+
     /// Appends the newest time (later than the previous one: the clock
-    /// check); a step beyond [`MAX_SAMPLE_STEP_US`] first forgets the older
-    /// times.
+    /// check); a step of [`Self::MAX_STEP_US`] or more first forgets the
+    /// older times.
     pub(crate) fn push(&mut self, t_us: u64) {
         let step = t_us.saturating_sub(self.newest);
-        if self.len > 0 && step > MAX_SAMPLE_STEP_US {
+        if self.len > 0 && step >= Self::MAX_STEP_US {
             self.clear();
         }
-        // Below 2^16 when a previous sample is stored (the check above).
-        self.steps[self.head % N] = if self.len > 0 { step as u16 } else { 0 };
+        let short = if self.len == 0 {
+            0
+        } else if step < u64::from(u16::MAX) {
+            step as u16 // below 2^16: the branch
+        } else {
+            let slot = self.next_long_step;
+            // The long step this one takes the slot of: the step to the
+            // sample of age `age` (before this push). If the sample before
+            // it is still stored, that sample and every older one are
+            // forgotten.
+            let age = self.pushes.wrapping_sub(self.long_steps[slot].1) as usize;
+            if age + 1 < self.len {
+                self.oldest = self.time_of(age);
+                self.len = age + 1;
+            }
+            // Below 2^32: under MAX_STEP_US (the check above).
+            self.long_steps[slot] = (step as u32, self.pushes.wrapping_add(1));
+            self.next_long_step = (slot + 1) % LONG_STEPS;
+            u16::MAX
+        };
+        self.pushes = self.pushes.wrapping_add(1);
+        self.steps[self.head % N] = short;
         self.head = (self.head + 1) % N;
         if self.len == 0 || self.newest_checkpoint_age + 1 >= Self::SPACING {
             self.checkpoints[self.next_checkpoint % CHECKPOINTS] = low_bits(t_us);
@@ -121,7 +158,21 @@ impl<const N: usize> SampleTimes<N> {
 
     /// The step from the sample of age `age + 1` to the one of age `age`.
     fn step(&self, age: usize) -> u64 {
-        u64::from(self.steps[(self.head + 2 * N - 1 - age % N) % N])
+        let short = self.steps[(self.head + 2 * N - 1 - age % N) % N];
+        if short < u16::MAX {
+            return u64::from(short);
+        }
+        // The sample of age `age` was the push numbered `pushes - age`.
+        let serial = self.pushes.wrapping_sub(age as u32);
+        self.long_steps
+            .iter()
+            .find(|(_, s)| *s == serial)
+            .map_or(0, |(step, _)| u64::from(*step))
+    }
+
+    /// The time of the stored sample of age `age` (0: the newest).
+    fn time_of(&self, age: usize) -> u64 {
+        (0..age).fold(self.newest, |t, a| t.saturating_sub(self.step(a)))
     }
 
     /// Checkpoints stored: those of an age below `len`.
@@ -326,7 +377,13 @@ mod tests {
             state ^= state << 13;
             state ^= state >> 7;
             state ^= state << 17;
-            t += 500 + state % 3000 + if state.is_multiple_of(97) { 60_000 } else { 0 };
+            t += 500
+                + state % 3000
+                + if state.is_multiple_of(97) {
+                    60_000 + state % 200_000
+                } else {
+                    0
+                };
             times.push(t);
             exact.push_front(t);
             exact.truncate(N);
@@ -355,15 +412,46 @@ mod tests {
     }
 
     #[test]
-    fn a_step_beyond_16_bits_forgets_the_older_times() {
+    fn long_steps_are_kept_exactly_and_the_longest_forgets_the_older_times() {
         let mut times = SampleTimes::<8>::new();
-        for t in [0, 1000, 66_535] {
+        // 50 Hz with dropouts: 80 ms and 200 ms steps.
+        for t in [0, 20_000, 100_000, 300_000, 320_000] {
             times.push(t);
         }
+        let d = |times: &SampleTimes<8>, t| times.delay_samples::<f64>(t);
         assert_eq!(times.oldest(), Some(0));
-        times.push(66_535 + MAX_SAMPLE_STEP_US + 1);
-        assert_eq!(times.oldest(), Some(66_535 + MAX_SAMPLE_STEP_US + 1));
-        assert_eq!(times.delay_samples::<f64>(66_535), None);
+        assert_eq!(d(&times, 60_000), Some(2.5));
+        assert_eq!(d(&times, 200_000), Some(1.5));
+        let max = SampleTimes::<8>::MAX_STEP_US;
+        times.push(320_000 + max);
+        assert_eq!(times.oldest(), Some(320_000 + max));
+        assert_eq!(d(&times, 320_000), None);
+    }
+
+    #[test]
+    fn a_ninth_long_step_in_the_span_forgets_the_times_before_the_first() {
+        let mut times = SampleTimes::<64>::new();
+        let mut exact = Vec::new();
+        let mut t = 5_000;
+        for k in 0..30u64 {
+            // Every third step is long (70-290 ms).
+            t += if k % 3 == 2 {
+                70_000 + k * 7_000
+            } else {
+                1_000
+            };
+            times.push(t);
+            exact.push(t);
+        }
+        // Ten long steps pushed (into samples 2, 5, ..., 29): the ninth and
+        // the tenth took the slots of the first two, so the samples before
+        // the second one's (sample 5) are forgotten.
+        let first_kept = exact[5];
+        assert_eq!(times.oldest(), Some(first_kept));
+        assert_eq!(times.delay_samples::<f64>(first_kept - 1), None);
+        for (age, &when) in exact.iter().rev().take(25).enumerate() {
+            assert_eq!(times.delay_samples::<f64>(when), Some(age as f64));
+        }
     }
 
     #[test]
