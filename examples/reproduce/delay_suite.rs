@@ -154,6 +154,10 @@ pub struct LoopTuning {
     pub innovation_window_s: Option<f64>,
     /// [`DelayLoopConfig::innovation_noise_scale`].
     pub innovation_noise_scale: Option<f64>,
+    /// [`DelayLoopConfig::innovation_reacquire_sigma`].
+    pub innovation_reacquire_sigma: Option<f64>,
+    /// [`DelayLoopConfig::innovation_before_lock`] on.
+    pub innovation_before_lock: bool,
     /// [`DelayLoopConfig::measurement_noise_ms2`], ms^2, every axis.
     pub measurement_noise_ms2: Option<f64>,
 }
@@ -175,6 +179,12 @@ impl LoopTuning {
         if let Some(k) = self.innovation_noise_scale {
             config.innovation_noise_scale = k;
         }
+        if let Some(k) = self.innovation_reacquire_sigma {
+            config.innovation_reacquire_sigma = k;
+        }
+        if self.innovation_before_lock {
+            config.innovation_before_lock = true;
+        }
         if let Some(r) = self.measurement_noise_ms2 {
             config.measurement_noise_ms2 = [r; 3];
         }
@@ -187,6 +197,8 @@ impl LoopTuning {
             "process_noise_ms2_per_s": self.process_noise_ms2_per_s,
             "innovation_window_s": self.innovation_window_s,
             "innovation_noise_scale": self.innovation_noise_scale,
+            "innovation_reacquire_sigma": self.innovation_reacquire_sigma,
+            "innovation_before_lock": self.innovation_before_lock,
             "measurement_noise_ms2": self.measurement_noise_ms2,
         })
     }

@@ -197,6 +197,15 @@ struct Args {
     #[arg(long, value_name = "FACTOR")]
     delay_innovation_noise_scale: Option<f64>,
     /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_reacquire_sigma` (0: off) [default: the loop's].
+    #[arg(long, value_name = "SIGMA")]
+    delay_innovation_reacquire_sigma: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_before_lock` on (fuse the innovation windows while
+    /// acquiring too).
+    #[arg(long)]
+    delay_innovation_before_lock: bool,
+    /// With --delay-suite or --delay-trace: the delay loop's
     /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
     /// [default: the loop's].
     #[arg(long, value_name = "MS2")]
@@ -1826,6 +1835,8 @@ fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
         process_noise_ms2_per_s: args.delay_process_noise,
         innovation_window_s: args.delay_innovation_window,
         innovation_noise_scale: args.delay_innovation_noise_scale,
+        innovation_reacquire_sigma: args.delay_innovation_reacquire_sigma,
+        innovation_before_lock: args.delay_innovation_before_lock,
         measurement_noise_ms2: args.delay_measurement_noise,
     }
 }

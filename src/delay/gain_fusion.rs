@@ -563,6 +563,31 @@ mod tests {
         );
     }
 
+    /// One extra measurement is a scalar Kalman update of the delay; bad
+    /// input is refused with the state unchanged.
+    fn extra_measurement<T: Scalar>() {
+        let mut f = fusion::<T>(0.0);
+        f.reset(T::lit(0.1), T::lit(0.03)).unwrap();
+        let before = f;
+        assert!(f.update(T::lit(f64::NAN), T::lit(1e-4)).is_err());
+        assert!(f.update(T::lit(0.2), T::zero()).is_err());
+        assert_eq!(f, before);
+        f.update(T::lit(0.2), T::lit(0.0003)).unwrap();
+        // P = 9e-4, R = 3e-4: K = 0.75, P+ = 2.25e-4.
+        assert!((f.delay_s().as_f64() - 0.175).abs() < 1e-6);
+        assert!((f.variance_s2().as_f64() - 2.25e-4).abs() < 1e-8);
+    }
+
+    #[test]
+    fn extra_measurement_f32() {
+        extra_measurement::<f32>();
+    }
+
+    #[test]
+    fn extra_measurement_f64() {
+        extra_measurement::<f64>();
+    }
+
     #[test]
     fn long_gaps_stay_finite_f32() {
         long_gaps_stay_finite::<f32>();

@@ -246,6 +246,16 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// the filter's absorption of the delay error into its attitude and
     /// biases is not modelled, and successive windows are not independent.
     pub innovation_noise_scale: T,
+    /// An innovation window beyond this many standard deviations
+    /// `sqrt(P + R)` of the estimate restarts the gain fusion from it (a
+    /// step of the delay). 0 disables.
+    pub innovation_reacquire_sigma: T,
+    /// Fuse the innovation windows before the correlation locks as well
+    /// (acquisition from them). Off: only once locked (refinement and step
+    /// detection); the first windows of a cold start, fused with the whole
+    /// range's variance, decide where the loop starts, and one unlucky
+    /// window leaves it tens of ms off (`docs/delay.md`).
+    pub innovation_before_lock: bool,
     /// Gain fusion, delay range (= the shift window, either sign) and
     /// initial delay.
     pub fusion: GainFusionConfig<T>,
@@ -276,6 +286,8 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             out_of_range_after_s: T::lit(2.0),
             innovation_window_s: T::ZERO,
             innovation_noise_scale: T::lit(1.0),
+            innovation_reacquire_sigma: T::lit(4.0),
+            innovation_before_lock: false,
             fusion: GainFusionConfig::default(),
         }
     }
@@ -322,6 +334,8 @@ impl<T: Scalar> DelayLoopConfig<T> {
         out_of_range_after_s: T::ZERO,
         innovation_window_s: T::ZERO,
         innovation_noise_scale: T::ZERO,
+        innovation_reacquire_sigma: T::ZERO,
+        innovation_before_lock: false,
         fusion: GainFusionConfig::ZEROED,
     };
 
@@ -433,7 +447,9 @@ impl<T: Scalar> DelayLoopConfig<T> {
                 "lock_std_s must be positive, the others finite and >= 0",
             );
         }
-        if !(non_negative_finite(self.innovation_window_s) && positive(self.innovation_noise_scale))
+        if !(non_negative_finite(self.innovation_window_s)
+            && positive(self.innovation_noise_scale)
+            && non_negative_finite(self.innovation_reacquire_sigma))
         {
             return bad(
                 "innovation",
@@ -1281,6 +1297,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return;
         };
         self.innovation_window = ZeroOption::Some((z, variance.sqrt()));
+        if !(self.locked || self.config.innovation_before_lock) {
+            return;
+        }
         let r = variance * self.config.innovation_noise_scale;
         let e = z - self.fusion.delay_s();
         let nis = e * e / (self.fusion.variance_s2() + r);
@@ -1291,6 +1310,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 T::one()
             };
             self.window_nis += alpha * (nis - self.window_nis);
+        }
+        // A window far outside the estimate's spread: the delay moved (a
+        // step); restart from the window rather than pull at the GFA's pace.
+        let k = self.config.innovation_reacquire_sigma;
+        if k > T::zero() && nis > k * k && self.fusion.reset(z, r.sqrt()).is_ok() {
+            return;
         }
         let _ = self.fusion.update(z, r);
     }
