@@ -41,6 +41,10 @@
 //!    from rate-independent settings, `R_i` scaled by each axis' motion, and
 //!    a re-acquisition after a sustained disagreement (see
 //!    [`DelayLoopConfig`]).
+//! 5. Optional second observation ([`innovation`], off by default): the
+//!    horizon filter's GPS innovations regressed on `-[v; a]`, the filter's
+//!    absorption of the delay error tracked as a sensitivity, one window at
+//!    a time fused into the GFA ([`DelayLoop::push_horizon_fix`]).
 //!
 //! | paper | implemented by |
 //! |---|---|
