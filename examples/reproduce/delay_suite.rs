@@ -890,7 +890,8 @@ impl Comparison {
 
 /// Runs the `proposed` navigator of row `name` on `seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's
-/// drift-rate estimate and status, and the last delay update's axes (valid flag, window peak, peak
+/// drift-rate estimate and status, the gain fusion's own sigma, the last
+/// innovation window (estimate and std, when the observation is on), and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`.
 /// Delays are relative to the raw IMU (the loop's values plus the
 /// accelerometer whitening's group delay), as the suite scores them. With

@@ -2139,7 +2139,8 @@ mod delay_flags {
         assert_eq!(summary.rows, 61);
         assert_eq!(lines.len(), 62);
         let columns = lines[0].split(',').count();
-        assert_eq!(columns, 8 + 3 * 5 + 2);
+        // 8 + the GFA's sigma and the innovation window (3), 5 per axis, 2 compared.
+        assert_eq!(columns, 11 + 3 * 5 + 2);
         assert!(lines.iter().all(|l| l.split(',').count() == columns));
         assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
         let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();
