@@ -254,11 +254,14 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// `sqrt(P + R)` of the estimate restarts the gain fusion from it (a
     /// step of the delay). 0 disables.
     pub innovation_reacquire_sigma: T,
-    /// Fuse the innovation windows before the correlation locks as well
-    /// (acquisition from them). Off: only once locked (refinement and step
-    /// detection); the first windows of a cold start, fused with the whole
-    /// range's variance, decide where the loop starts, and one unlucky
-    /// window leaves it tens of ms off (`docs/delay.md`).
+    /// Before the correlation locks, fuse the innovation windows as well
+    /// while the correlation sees no motion (status `WaitingForMotion`):
+    /// the windows hold the estimate until the first valid correlation
+    /// window, which then acquires as without them. Off: only once locked
+    /// (refinement and step detection). On, the first windows of a cold
+    /// start, fused against the whole range's variance, decide where the
+    /// loop starts, and the suite's figures move by several ms with the
+    /// window length (`docs/delay.md`).
     pub innovation_before_lock: bool,
     /// Gain fusion, delay range (= the shift window, either sign) and
     /// initial delay.
@@ -1301,7 +1304,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return;
         };
         self.innovation_window = ZeroOption::Some((z, variance.sqrt()));
-        if !(self.locked || self.config.innovation_before_lock) {
+        if !(self.locked
+            || (self.config.innovation_before_lock && self.status == DelayStatus::WaitingForMotion))
+        {
             return;
         }
         let r = variance * self.config.innovation_noise_scale;
