@@ -150,6 +150,16 @@ pub struct LoopTuning {
     pub rate_time_constant_s: Option<f64>,
     /// [`DelayLoopConfig::process_noise_ms2_per_s`], ms^2/s.
     pub process_noise_ms2_per_s: Option<f64>,
+    /// [`DelayLoopConfig::innovation_window_s`], s (0: off).
+    pub innovation_window_s: Option<f64>,
+    /// [`DelayLoopConfig::innovation_noise_scale`].
+    pub innovation_noise_scale: Option<f64>,
+    /// [`DelayLoopConfig::innovation_reacquire_sigma`].
+    pub innovation_reacquire_sigma: Option<f64>,
+    /// [`DelayLoopConfig::innovation_before_lock`] on.
+    pub innovation_before_lock: bool,
+    /// [`DelayLoopConfig::measurement_noise_ms2`], ms^2, every axis.
+    pub measurement_noise_ms2: Option<f64>,
 }
 
 impl LoopTuning {
@@ -163,6 +173,21 @@ impl LoopTuning {
         if let Some(q) = self.process_noise_ms2_per_s {
             config.process_noise_ms2_per_s = q;
         }
+        if let Some(w) = self.innovation_window_s {
+            config.innovation_window_s = w;
+        }
+        if let Some(k) = self.innovation_noise_scale {
+            config.innovation_noise_scale = k;
+        }
+        if let Some(k) = self.innovation_reacquire_sigma {
+            config.innovation_reacquire_sigma = k;
+        }
+        if self.innovation_before_lock {
+            config.innovation_before_lock = true;
+        }
+        if let Some(r) = self.measurement_noise_ms2 {
+            config.measurement_noise_ms2 = [r; 3];
+        }
     }
 
     fn to_json(self) -> Value {
@@ -170,6 +195,11 @@ impl LoopTuning {
             "rate_std_s_per_s": self.rate_std,
             "rate_time_constant_s": self.rate_time_constant_s,
             "process_noise_ms2_per_s": self.process_noise_ms2_per_s,
+            "innovation_window_s": self.innovation_window_s,
+            "innovation_noise_scale": self.innovation_noise_scale,
+            "innovation_reacquire_sigma": self.innovation_reacquire_sigma,
+            "innovation_before_lock": self.innovation_before_lock,
+            "measurement_noise_ms2": self.measurement_noise_ms2,
         })
     }
 }
@@ -860,7 +890,8 @@ impl Comparison {
 
 /// Runs the `proposed` navigator of row `name` on `seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's
-/// drift-rate estimate and status, and the last delay update's axes (valid flag, window peak, peak
+/// drift-rate estimate and status, the gain fusion's own sigma, the last
+/// innovation window (estimate and std, when the observation is on), and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`.
 /// Delays are relative to the raw IMU (the loop's values plus the
 /// accelerometer whitening's group delay), as the suite scores them. With
@@ -890,7 +921,7 @@ pub fn write_trace(
     let (group_delay_s, _) = nav.group_delays_s();
     write!(
         out,
-        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,update_t_s"
+        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,gfa_std_s,innovation_estimate_s,innovation_std_s,update_t_s"
     )?;
     for axis in AXIS_NAMES {
         write!(
@@ -939,6 +970,11 @@ pub fn write_trace(
             nav.delay_loop().delay_rate() * 1e3,
             status_name(nav.delay_loop().status()),
         )?;
+        write!(out, ",{:.6}", nav.delay_loop().fusion_std_s())?;
+        match nav.delay_loop().innovation_estimate() {
+            Some((z, std)) => write!(out, ",{:.6},{std:.6}", z + group_delay_s)?,
+            None => write!(out, ",,")?,
+        }
         match nav.last_delay_update() {
             Some(update) => {
                 write!(out, ",{:.3}", update.t_us as f64 * 1e-6)?;

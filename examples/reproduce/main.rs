@@ -187,6 +187,29 @@ struct Args {
     /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
     #[arg(long, value_name = "MS2_PER_S")]
     delay_process_noise: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_window_s` (the horizon innovations' observation), s; 0
+    /// turns it off [default: the loop's].
+    #[arg(long, value_name = "S")]
+    delay_innovation_window: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    delay_innovation_noise_scale: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_reacquire_sigma` (0: off) [default: the loop's].
+    #[arg(long, value_name = "SIGMA")]
+    delay_innovation_reacquire_sigma: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_before_lock` on (fuse the innovation windows while
+    /// acquiring too).
+    #[arg(long)]
+    delay_innovation_before_lock: bool,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
+    /// [default: the loop's].
+    #[arg(long, value_name = "MS2")]
+    delay_measurement_noise: Option<f64>,
     /// Run only the bound study instead of the tables: the bound with each
     /// difference to the estimators in turn, beside `oracle` and `proposed`.
     #[arg(long)]
@@ -1810,6 +1833,11 @@ fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
         rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
         rate_time_constant_s: args.delay_rate_time_constant,
         process_noise_ms2_per_s: args.delay_process_noise,
+        innovation_window_s: args.delay_innovation_window,
+        innovation_noise_scale: args.delay_innovation_noise_scale,
+        innovation_reacquire_sigma: args.delay_innovation_reacquire_sigma,
+        innovation_before_lock: args.delay_innovation_before_lock,
+        measurement_noise_ms2: args.delay_measurement_noise,
     }
 }
 
@@ -2111,7 +2139,8 @@ mod delay_flags {
         assert_eq!(summary.rows, 61);
         assert_eq!(lines.len(), 62);
         let columns = lines[0].split(',').count();
-        assert_eq!(columns, 8 + 3 * 5 + 2);
+        // 8 + the GFA's sigma and the innovation window (3), 5 per axis, 2 compared.
+        assert_eq!(columns, 11 + 3 * 5 + 2);
         assert!(lines.iter().all(|l| l.split(',').count() == columns));
         assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
         let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();

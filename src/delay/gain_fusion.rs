@@ -294,6 +294,44 @@ impl<T: Scalar> GainFusion<T> {
         )
     }
 
+    /// One more measurement `z_s` (s) of the delay with variance `r_s2`
+    /// (s^2), fused as a Kalman update of `[delay, rate]` with `H = [1 0]`
+    /// (no prediction: it comes between two [`step`](Self::step)s).
+    /// Refused, state unchanged: a non-finite `z_s`, a non-positive or
+    /// non-finite `r_s2`.
+    pub fn update(&mut self, z_s: T, r_s2: T) -> Result<(), Error> {
+        if !z_s.is_finite() {
+            return Err(Error::NonFinite {
+                field: "gfa.measurement",
+            });
+        }
+        if !positive_finite(r_s2) {
+            return Err(Error::OutOfRange {
+                field: "gfa.noise",
+                reason: "R must be positive and finite",
+            });
+        }
+        let [p_dd, p_dr, p_rr] = self.covariance;
+        let s = p_dd + r_s2;
+        let (k_d, k_r) = (p_dd / s, p_dr / s);
+        let innovation = z_s - self.delay_s;
+        let (min, max) = (self.config.delay_min_s, self.config.delay_max_s);
+        let delay_s = self.delay_s + k_d * innovation;
+        let mut rate = self.rate + k_r * innovation;
+        if (delay_s <= min && rate < T::zero()) || (delay_s >= max && rate > T::zero()) {
+            rate = T::zero();
+        }
+        self.delay_s = delay_s.clamp(min, max);
+        self.rate = rate;
+        // P - K H P.
+        self.covariance = [
+            (p_dd - k_d * p_dd).max(T::zero()),
+            p_dr - k_d * p_dr,
+            (p_rr - k_r * p_dr).max(T::zero()),
+        ];
+        Ok(())
+    }
+
     /// One iteration (module docs) over `dt_s` seconds since the previous
     /// one, with measurements `z_s` (s), validities `V_i`, the delay's
     /// process noise `Q_f` (s^2) and measurement variances `R_i` (s^2).
@@ -523,6 +561,31 @@ mod tests {
             )
             .is_err()
         );
+    }
+
+    /// One extra measurement is a scalar Kalman update of the delay; bad
+    /// input is refused with the state unchanged.
+    fn extra_measurement<T: Scalar>() {
+        let mut f = fusion::<T>(0.0);
+        f.reset(T::lit(0.1), T::lit(0.03)).unwrap();
+        let before = f;
+        assert!(f.update(T::lit(f64::NAN), T::lit(1e-4)).is_err());
+        assert!(f.update(T::lit(0.2), T::zero()).is_err());
+        assert_eq!(f, before);
+        f.update(T::lit(0.2), T::lit(0.0003)).unwrap();
+        // P = 9e-4, R = 3e-4: K = 0.75, P+ = 2.25e-4.
+        assert!((f.delay_s().as_f64() - 0.175).abs() < 1e-6);
+        assert!((f.variance_s2().as_f64() - 2.25e-4).abs() < 1e-8);
+    }
+
+    #[test]
+    fn extra_measurement_f32() {
+        extra_measurement::<f32>();
+    }
+
+    #[test]
+    fn extra_measurement_f64() {
+        extra_measurement::<f64>();
     }
 
     #[test]

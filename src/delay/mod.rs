@@ -41,6 +41,10 @@
 //!    from rate-independent settings, `R_i` scaled by each axis' motion, and
 //!    a re-acquisition after a sustained disagreement (see
 //!    [`DelayLoopConfig`]).
+//! 5. Optional second observation ([`innovation`], off by default): the
+//!    horizon filter's GPS innovations regressed on `-[v; a]`, the filter's
+//!    absorption of the delay error tracked as a sensitivity, one window at
+//!    a time fused into the GFA ([`DelayLoop::push_horizon_fix`]).
 //!
 //! | paper | implemented by |
 //! |---|---|
@@ -87,6 +91,7 @@ pub mod fir;
 pub mod fractional_delay;
 pub mod gain_fusion;
 mod grid;
+pub mod innovation;
 mod matched;
 pub(crate) mod packed;
 pub(crate) mod ring;
@@ -97,6 +102,7 @@ pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
 pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
 pub use grid::{MAX_GPS_DIFF_SPAN, MAX_GRID_TIME_US, MAX_INPUT_MAGNITUDE};
+pub use innovation::{HorizonFix, InnovationDelay};
 pub use matched::MATCHED_INTERVALS;
 
 use nalgebra::Vector3;
@@ -234,6 +240,30 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// How long the correlation peaks of the moving axes must sit on one edge
     /// of the range before the status reports the delay out of range, s.
     pub out_of_range_after_s: T,
+    /// Window of the second delay observation, from the horizon filter's
+    /// GPS innovations ([`innovation`] module), s: every this long its
+    /// least-squares estimate is fused into the gain fusion. 0 disables
+    /// (the default: measured on the delay suite it halves `cold_start_low`
+    /// but makes `cold_start_high`, `delay_step`, `delay_jitter` and
+    /// `negative_delay` worse, `docs/delay.md`); 1 s is the measured setting.
+    pub innovation_window_s: T,
+    /// Factor on that estimate's variance (`1 / info`) when it is fused:
+    /// the filter's absorption of the delay error into its attitude and
+    /// biases is not modelled, and successive windows are not independent.
+    pub innovation_noise_scale: T,
+    /// An innovation window beyond this many standard deviations
+    /// `sqrt(P + R)` of the estimate restarts the gain fusion from it (a
+    /// step of the delay). 0 disables.
+    pub innovation_reacquire_sigma: T,
+    /// Before the correlation locks, fuse the innovation windows as well
+    /// while the correlation sees no motion (status `WaitingForMotion`):
+    /// the windows hold the estimate until the first valid correlation
+    /// window, which then acquires as without them. Off: only once locked
+    /// (refinement and step detection). On, the first windows of a cold
+    /// start, fused against the whole range's variance, decide where the
+    /// loop starts, and the suite's figures move by several ms with the
+    /// window length (`docs/delay.md`).
+    pub innovation_before_lock: bool,
     /// Gain fusion, delay range (= the shift window, either sign) and
     /// initial delay.
     pub fusion: GainFusionConfig<T>,
@@ -262,6 +292,10 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             acquire_sigma: T::lit(1.0),
             lock_after_s: T::lit(1.0),
             out_of_range_after_s: T::lit(2.0),
+            innovation_window_s: T::ZERO,
+            innovation_noise_scale: T::lit(1.0),
+            innovation_reacquire_sigma: T::lit(4.0),
+            innovation_before_lock: false,
             fusion: GainFusionConfig::default(),
         }
     }
@@ -306,6 +340,10 @@ impl<T: Scalar> DelayLoopConfig<T> {
         acquire_sigma: T::ZERO,
         lock_after_s: T::ZERO,
         out_of_range_after_s: T::ZERO,
+        innovation_window_s: T::ZERO,
+        innovation_noise_scale: T::ZERO,
+        innovation_reacquire_sigma: T::ZERO,
+        innovation_before_lock: false,
         fusion: GainFusionConfig::ZEROED,
     };
 
@@ -423,6 +461,15 @@ impl<T: Scalar> DelayLoopConfig<T> {
             return bad(
                 "acquisition",
                 "lock_std_s must be positive, the others finite and >= 0",
+            );
+        }
+        if !(non_negative_finite(self.innovation_window_s)
+            && positive(self.innovation_noise_scale)
+            && non_negative_finite(self.innovation_reacquire_sigma))
+        {
+            return bad(
+                "innovation",
+                "window must be finite and >= 0, noise scale positive and finite",
             );
         }
         self.fusion.validate()?;
@@ -556,6 +603,15 @@ pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
 /// it only removes the pessimism of the noise model).
 pub const SIGMA_SCALE2_MIN: f64 = 0.01;
 
+/// Largest difference between the delay the horizon applied to a fix and
+/// the loop's estimate for the innovation window to be fused, s.
+pub const MAX_APPLIED_DELAY_ERROR_S: f64 = 0.02;
+
+/// Largest squared scale of the reported sigma with the innovation
+/// observation on (its windows' variances are measured, not pessimistic, so
+/// the match may widen the sigma as well as narrow it).
+pub const SIGMA_SCALE2_MAX: f64 = 16.0;
+
 /// Largest disagreement between two valid axes of one window, in standard
 /// deviations `sqrt(R_i + R_j)` of their difference.
 pub const AXIS_AGREEMENT_SIGMA: f64 = 3.0;
@@ -654,6 +710,11 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     stable_since_us: Option<u64>,
     edge: ZeroOption<EdgeRun<T>>,
     status: DelayStatus<T>,
+    innovation: InnovationDelay<T>,
+    innovation_window: ZeroOption<(T, T)>,
+    /// Running mean of the innovation windows' normalized squared
+    /// disagreement with the estimate (0 before the first).
+    window_nis: T,
     /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
     /// [`configure`](DelayLoop::configure): every sample is refused.
     configured: bool,
@@ -706,6 +767,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         stable_since_us: None,
         edge: ZeroOption::None,
         status: DelayStatus::WaitingForData,
+        innovation: InnovationDelay::BLANK,
+        innovation_window: ZeroOption::None,
+        window_nis: T::ZERO,
         configured: false,
     };
 
@@ -771,6 +835,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.stable_since_us = None;
         self.edge = ZeroOption::None;
         self.status = DelayStatus::WaitingForData;
+        self.innovation = InnovationDelay::BLANK;
+        self.innovation_window = ZeroOption::None;
+        self.window_nis = T::zero();
         self.configured = true;
         Ok(())
     }
@@ -805,10 +872,24 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         (self.fusion.variance_s2() * self.sigma_scale2()).sqrt()
     }
 
+    /// The gain fusion's own standard deviation `sqrt(P)`, s, before the
+    /// innovation match of [`delay_std_s`](Self::delay_std_s).
+    pub fn fusion_std_s(&self) -> T {
+        self.fusion.variance_s2().sqrt()
+    }
+
     /// The squared scale applied to the GFA's variance: the mean normalized
     /// innovation squared while locked (1 before), within
     /// `[SIGMA_SCALE2_MIN, 1]`.
     fn sigma_scale2(&self) -> T {
+        if self.config.innovation_window_s > T::zero() {
+            return if self.locked && !self.following && self.window_nis > T::zero() {
+                self.window_nis
+                    .clamp(T::lit(SIGMA_SCALE2_MIN), T::lit(SIGMA_SCALE2_MAX))
+            } else {
+                T::one()
+            };
+        }
         if self.locked && !self.following {
             self.innovation_ratio
                 .clamp(T::lit(SIGMA_SCALE2_MIN), T::one())
@@ -977,6 +1058,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.follow(t_us, &z, &valid, &r_buffer_s2)
         } else {
             let gains = self.fusion.step(z, valid, dt_s, q_s2, r_s2)?.gains;
+            self.fuse_innovations(t_us);
             let lock = self.config.lock_std_s;
             self.locked |= valid.iter().any(|&v| v) && self.fusion.variance_s2() <= lock * lock;
             gains
@@ -1197,6 +1279,64 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.stable_since_us = None;
         }
         restarted
+    }
+
+    /// The horizon filter's record of one fused fix (the second observation
+    /// of the delay, [`innovation`] module). Nothing when
+    /// [`DelayLoopConfig::innovation_window_s`] is 0.
+    pub fn push_horizon_fix(&mut self, fix: &HorizonFix<T>) {
+        if !(self.configured && self.config.innovation_window_s > T::zero()) {
+            return;
+        }
+        // A horizon that could not apply the estimate (a negative delay: the
+        // horizon cannot run ahead of the IMU) leaves a lasting delay error,
+        // which the filter absorbs beyond what the sensitivity models.
+        if (fix.delay_s - self.fusion.delay_s()).abs() > T::lit(MAX_APPLIED_DELAY_ERROR_S) {
+            self.innovation.discard_window();
+        }
+        self.innovation.observe(fix);
+    }
+
+    /// The last window of the innovation observation: `(delay, std)`, s.
+    pub fn innovation_estimate(&self) -> Option<(T, T)> {
+        self.innovation_window.get()
+    }
+
+    /// Fuses the innovation window, when one is complete, into the gain
+    /// fusion with its variance times
+    /// [`DelayLoopConfig::innovation_noise_scale`].
+    fn fuse_innovations(&mut self, t_us: u64) {
+        let window_s = self.config.innovation_window_s;
+        if window_s <= T::zero() {
+            return;
+        }
+        let Some((z, variance)) = self.innovation.take(t_us, window_s) else {
+            return;
+        };
+        self.innovation_window = ZeroOption::Some((z, variance.sqrt()));
+        if !(self.locked
+            || (self.config.innovation_before_lock && self.status == DelayStatus::WaitingForMotion))
+        {
+            return;
+        }
+        let r = variance * self.config.innovation_noise_scale;
+        let e = z - self.fusion.delay_s();
+        let nis = e * e / (self.fusion.variance_s2() + r);
+        if self.locked && !self.following {
+            let alpha = if self.window_nis > T::zero() {
+                (window_s / T::lit(SIGMA_MATCH_TIME_S)).min(T::one())
+            } else {
+                T::one()
+            };
+            self.window_nis += alpha * (nis - self.window_nis);
+        }
+        // A window far outside the estimate's spread: the delay moved (a
+        // step); restart from the window rather than pull at the GFA's pace.
+        let k = self.config.innovation_reacquire_sigma;
+        if k > T::zero() && nis > k * k && self.fusion.reset(z, r.sqrt()).is_ok() {
+            return;
+        }
+        let _ = self.fusion.update(z, r);
     }
 
     /// [`DelayLoop::push_gps`] for any [`GpsFix`].

@@ -21,7 +21,7 @@ fn size_of_every_member_at_half_a_second() {
             size_of_val(&nav.forward),
             2_200,
         ),
-        ("delay_loop", size_of_val(&nav.delay_loop), 7_700),
+        ("delay_loop", size_of_val(&nav.delay_loop), 7_800),
         (
             "history (and its header cache)",
             size_of_val(&nav.history) + size_of_val(&nav.history_headers),
@@ -51,5 +51,5 @@ fn size_of_every_member_at_half_a_second() {
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
-    assert!(total <= 24_200, "{total} B");
+    assert!(total <= 24_300, "{total} B");
 }

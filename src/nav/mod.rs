@@ -139,7 +139,7 @@ pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
 use crate::delay::{
-    DefaultDelayLoop, DelayUpdate, MAX_INPUT_MAGNITUDE, SensorDelays, WhiteningFir,
+    DefaultDelayLoop, DelayUpdate, HorizonFix, MAX_INPUT_MAGNITUDE, SensorDelays, WhiteningFir,
 };
 use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::nav_core::check_position_kind;
@@ -148,11 +148,11 @@ use crate::ekf16::state::{
 };
 use crate::ekf16::{Ekf16, RefusalCounters};
 use crate::error::Error;
-use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
+use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
 use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::{
-    GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
+    Gps, GpsFix, Imu, ImuSample, Mag, MagSample, checked_gps, checked_imu, checked_mag,
 };
 use crate::zero_option::ZeroOption;
 use forward::ForwardReckoner;
@@ -1099,6 +1099,74 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.forward.correct(t_h, &x_h);
     }
 
+    /// The horizon EKF's time, velocity and covariance before a fusion.
+    fn horizon_prior(&self) -> Option<HorizonPrior<T>> {
+        if !self.ekf.is_initialized() {
+            return None;
+        }
+        let x = self.ekf.state_vector();
+        let p = self.ekf.covariance();
+        Some(HorizonPrior {
+            t_us: self.ekf.time_us()?,
+            velocity: x.fixed_rows::<3>(VEL).into_owned(),
+            covariance: core::array::from_fn(|i| {
+                [
+                    p[(POS + i, POS + i)],
+                    p[(POS + i, VEL + i)],
+                    p[(VEL + i, VEL + i)],
+                ]
+            }),
+        })
+    }
+
+    /// Gives the delay loop the horizon's record of a fused fix (the
+    /// innovation observation of the delay, `delay::innovation`): per axis
+    /// the prior position-velocity covariance, the noises recovered from
+    /// the innovation variances (position is fused first: `S_p = P_pp +
+    /// R_p`; velocity after it: `S_v = P_vv - P_pv^2 / S_p + R_v`), the
+    /// position innovation and the velocity's against the prior state.
+    fn push_horizon_fix(
+        &mut self,
+        fix: &Gps<T>,
+        prior: &HorizonPrior<T>,
+        position: &FusionRecord<T, 3>,
+        velocity: &FusionRecord<T, 3>,
+        reset: bool,
+    ) {
+        let Some(x) = self.ekf.nav_state() else {
+            return;
+        };
+        let (d_f, _) = self.group_delays_s();
+        // Either sign: a negative delay puts the horizon after the fix.
+        let delay_us = fix.t_us as f64 - prior.t_us as f64;
+        let delay_s = T::lit(delay_us * 1e-6) - d_f;
+        let tiny = T::lit(1e-12);
+        let horizon_fix = HorizonFix {
+            horizon_us: prior.t_us,
+            delay_s,
+            velocity_prior: prior.velocity,
+            velocity_post: x.velocity_ned_m_s,
+            covariance: prior.covariance,
+            noise: core::array::from_fn(|i| {
+                let [p_pp, p_pv, p_vv] = prior.covariance[i];
+                let s_p = position.innovation_variance[i];
+                let s_v = velocity.innovation_variance[i];
+                let r_p = (s_p - p_pp).max(tiny);
+                let r_v = (s_v - p_vv + p_pv * p_pv / s_p.max(tiny)).max(tiny);
+                [r_p, r_v]
+            }),
+            innovation: core::array::from_fn(|i| {
+                [
+                    position.innovation[i],
+                    fix.velocity_ned_m_s[i] - prior.velocity[i],
+                ]
+            }),
+            fused: [position.fused, velocity.fused],
+            reset,
+        };
+        self.delay_loop.push_horizon_fix(&horizon_fix);
+    }
+
     /// Gives the waiting fix (if any) to the delay loop: the peak search
     /// and the gain fusion, kept out of the call that fuses the fix.
     fn update_delay(&mut self) {
@@ -1138,6 +1206,15 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         )?;
         Ok(s)
     }
+}
+
+/// The horizon EKF before a GPS fusion: its time (us), velocity (NED, m/s)
+/// and, per axis, `[P_pp, P_pv, P_vv]`.
+#[derive(Debug, Clone, Copy)]
+struct HorizonPrior<T: Scalar> {
+    t_us: u64,
+    velocity: Vector3<T>,
+    covariance: [[T; 3]; 3],
 }
 
 impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST> {
@@ -1276,7 +1353,19 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             return Ok(GpsOutcome::Waiting);
         }
         let resets_before = self.ekf.last_gps_reset();
+        let innovations = self.delay_loop.config().innovation_window_s > T::zero();
+        let prior = if innovations {
+            self.horizon_prior()
+        } else {
+            None
+        };
         let outcome = self.ekf.push_gps(&fix)?;
+        let reset = self.ekf.last_gps_reset() != resets_before;
+        if self.is_estimating()
+            && let (Some(prior), GpsOutcome::Fused { position, velocity }) = (prior, outcome)
+        {
+            self.push_horizon_fix(&fix, &prior, &position, &velocity, reset);
+        }
         if let Some(reset) = self.ekf.last_gps_reset()
             && resets_before != Some(reset)
         {
