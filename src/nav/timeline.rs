@@ -117,7 +117,7 @@ impl<const N: usize> SampleTimes<N> {
         } else if step < u64::from(u16::MAX) {
             step as u16 // below 2^16: the branch
         } else {
-            let slot = self.next_long_step;
+            let slot = self.next_long_step % LONG_STEPS;
             // The long step this one takes the slot of: the step to the
             // sample of age `age` (before this push). If the sample before
             // it is still stored, that sample and every older one are
@@ -157,12 +157,21 @@ impl<const N: usize> SampleTimes<N> {
     }
 
     /// The step from the sample of age `age + 1` to the one of age `age`.
+    #[inline(always)]
     fn step(&self, age: usize) -> u64 {
         let short = self.steps[(self.head + 2 * N - 1 - age % N) % N];
         if short < u16::MAX {
-            return u64::from(short);
+            u64::from(short)
+        } else {
+            self.long_step(age)
         }
-        // The sample of age `age` was the push numbered `pushes - age`.
+    }
+
+    /// A step marked long: the one kept for the sample of age `age`, the
+    /// push numbered `pushes - age`.
+    #[cold]
+    #[inline(never)]
+    fn long_step(&self, age: usize) -> u64 {
         let serial = self.pushes.wrapping_sub(age as u32);
         self.long_steps
             .iter()
