@@ -243,9 +243,8 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// Window of the second delay observation, from the horizon filter's
     /// GPS innovations ([`innovation`] module), s: every this long its
     /// least-squares estimate is fused into the gain fusion. 0 disables
-    /// (the default: measured on the delay suite it halves `cold_start_low`
-    /// but makes `cold_start_high`, `delay_step`, `delay_jitter` and
-    /// `negative_delay` worse, `docs/delay.md`); 1 s is the measured setting.
+    /// (the default: the delay suite's figures for 4-6 s windows are in
+    /// `docs/delay.md`, section 8; 5 s is the measured setting).
     pub innovation_window_s: T,
     /// Factor on that estimate's variance (`1 / info`) when it is fused:
     /// the filter's absorption of the delay error into its attitude and
@@ -614,8 +613,8 @@ pub const SIGMA_SCALE2_MIN: f64 = 0.01;
 pub const MAX_APPLIED_DELAY_ERROR_S: f64 = 0.02;
 
 /// Before lock, an innovation window is fused only within this many
-/// standard deviations (scaled as fused) of the previous window: 1.5, 2
-/// and 3 gave the same delay suite to the last digit, 1 was worse
+/// standard deviations (scaled as fused) of the previous window: 3 gave
+/// the same delay suite, 1.5 the same but for one row, 1 was worse
 /// (`docs/delay.md`).
 pub const ACQUIRE_AGREEMENT_SIGMA: f64 = 2.0;
 
