@@ -158,6 +158,8 @@ pub struct LoopTuning {
     pub innovation_reacquire_sigma: Option<f64>,
     /// [`DelayLoopConfig::innovation_before_lock`] on.
     pub innovation_before_lock: bool,
+    /// [`DelayLoopConfig::innovation_acquire_noise_scale`].
+    pub innovation_acquire_noise_scale: Option<f64>,
     /// [`DelayLoopConfig::measurement_noise_ms2`], ms^2, every axis.
     pub measurement_noise_ms2: Option<f64>,
 }
@@ -185,6 +187,9 @@ impl LoopTuning {
         if self.innovation_before_lock {
             config.innovation_before_lock = true;
         }
+        if let Some(k) = self.innovation_acquire_noise_scale {
+            config.innovation_acquire_noise_scale = k;
+        }
         if let Some(r) = self.measurement_noise_ms2 {
             config.measurement_noise_ms2 = [r; 3];
         }
@@ -199,6 +204,7 @@ impl LoopTuning {
             "innovation_noise_scale": self.innovation_noise_scale,
             "innovation_reacquire_sigma": self.innovation_reacquire_sigma,
             "innovation_before_lock": self.innovation_before_lock,
+            "innovation_acquire_noise_scale": self.innovation_acquire_noise_scale,
             "measurement_noise_ms2": self.measurement_noise_ms2,
         })
     }

@@ -201,10 +201,14 @@ struct Args {
     #[arg(long, value_name = "SIGMA")]
     delay_innovation_reacquire_sigma: Option<f64>,
     /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_before_lock` on (fuse the innovation windows while
-    /// acquiring too).
+    /// `innovation_before_lock` on (fuse the innovation windows before
+    /// lock too, each when it agrees with the previous one).
     #[arg(long)]
     delay_innovation_before_lock: bool,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_acquire_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    delay_innovation_acquire_noise_scale: Option<f64>,
     /// With --delay-suite or --delay-trace: the delay loop's
     /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
     /// [default: the loop's].
@@ -1837,6 +1841,7 @@ fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
         innovation_noise_scale: args.delay_innovation_noise_scale,
         innovation_reacquire_sigma: args.delay_innovation_reacquire_sigma,
         innovation_before_lock: args.delay_innovation_before_lock,
+        innovation_acquire_noise_scale: args.delay_innovation_acquire_noise_scale,
         measurement_noise_ms2: args.delay_measurement_noise,
     }
 }
