@@ -219,7 +219,9 @@ pub struct NavRefusals {
     /// confirmed by the next sample.
     pub imu_ahead: u32,
     /// IMU gaps longer than the EKF's `max_imu_step_us` or than the
-    /// history's longest step, `u32::MAX / HIST` µs (history restarted).
+    /// history's longest step, `u32::MAX / HIST` µs (history restarted),
+    /// and steps of 65,535 µs or more that made the history forget its
+    /// oldest samples (a ninth within its span, `docs/nav.md`).
     pub imu_gap: u32,
     /// GPS fixes with a non-finite or implausible value.
     pub gps_invalid: u32,
@@ -1250,7 +1252,10 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         channels.fixed_rows_mut::<3>(3).copy_from(&gyro);
         // Finite and bounded by the checks above: the history cannot refuse it.
         let _ = self.history.push(channels);
-        self.times.push(s.t_us);
+        if self.times.push(s.t_us) {
+            // A ninth long step within the span: the oldest times forgotten.
+            bump(&mut self.refusals.imu_gap);
+        }
         self.imu_samples += 1;
 
         if self.forward.is_started() {

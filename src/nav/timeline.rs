@@ -106,8 +106,10 @@ impl<const N: usize> SampleTimes<N> {
 
     /// Appends the newest time (later than the previous one: the clock
     /// check); a step of [`Self::MAX_STEP_US`] or more first forgets the
-    /// older times.
-    pub(crate) fn push(&mut self, t_us: u64) {
+    /// older times. Returns whether a long step's ring slot forgot stored
+    /// times (the caller counts it).
+    pub(crate) fn push(&mut self, t_us: u64) -> bool {
+        let mut forgot = false;
         let step = t_us.saturating_sub(self.newest);
         if self.len > 0 && step >= Self::MAX_STEP_US {
             self.clear();
@@ -126,6 +128,7 @@ impl<const N: usize> SampleTimes<N> {
             if age + 1 < self.len {
                 self.oldest = self.time_of(age);
                 self.len = age + 1;
+                forgot = true;
             }
             // Below 2^32: under MAX_STEP_US (the check above).
             self.long_steps[slot] = (step as u32, self.pushes.wrapping_add(1));
@@ -150,6 +153,7 @@ impl<const N: usize> SampleTimes<N> {
         }
         self.len = (self.len + 1).min(N);
         self.newest = t_us;
+        forgot
     }
 
     pub(crate) fn clear(&mut self) {
