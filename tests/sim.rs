@@ -7,7 +7,7 @@ use delaynav::geo::rotation_matrix;
 use delaynav::sim::{
     BoundConfig, BoundMagnetometer, DelayProfile, DelayStep, GpsPositionOutput, STANDARD_GRAVITY,
     Scenario, SensorConfig, SimConfig, SimEvent, Simulation, Truth, VibrationHarmonic, csv,
-    delay_bound_s, noise_floor, tilt_heading_error_rad, trajectory_bound,
+    delay_bound_s, delay_ramp_bound_s, noise_floor, tilt_heading_error_rad, trajectory_bound,
 };
 use delaynav::{
     DelayCompensatedNav, DelayMode, Ekf16Config, GpsPosition, Imu, Mag, NavConfig, Navigator,
@@ -534,6 +534,33 @@ fn delay_bound_matches_its_closed_form() {
     let still: Vec<(u64, Vector3<f64>)> =
         (1..=200).map(|j| (j * 100_000, Vector3::zeros())).collect();
     assert!(delay_bound_s(&still, 0.1, 5_000_000, 10_000_000).is_none());
+}
+
+#[test]
+fn delay_ramp_bound_matches_the_straight_line_fit() {
+    // Equal weights: the variance of a least-squares line at its last abscissa
+    // is sigma^2 (1/n + (t_n - mean)^2 / sum (t_j - mean)^2), sigma^2 = var / |a|^2.
+    let a = Vector3::new(3.0, 4.0, 0.0);
+    let fixes: Vec<(u64, Vector3<f64>)> = (1..=20).map(|j| (j * 100_000, a)).collect();
+    let skip_us = 2_000_000; // the last fix only
+    let bound = delay_ramp_bound_s(&fixes, 0.1, skip_us).unwrap();
+    let times: Vec<f64> = (0..20).map(|j| j as f64 * 0.1).collect();
+    let mean = times.iter().sum::<f64>() / 20.0;
+    let spread: f64 = times.iter().map(|t| (t - mean).powi(2)).sum();
+    let expected = (0.1 / 25.0 * (1.0 / 20.0 + (1.9 - mean).powi(2) / spread)).sqrt();
+    assert!(
+        (bound / expected - 1.0).abs() < 1e-9,
+        "{bound} vs {expected}"
+    );
+    // A line is dearer than a constant: the same fixes pin a constant better.
+    let constant = delay_bound_s(&fixes, 0.1, 10_000_000, skip_us).unwrap();
+    assert!(constant < bound, "{constant} vs {bound}");
+    // One fix with motion cannot fix a line.
+    let mut one = fixes.clone();
+    for f in one.iter_mut().skip(1) {
+        f.1 = Vector3::zeros();
+    }
+    assert!(delay_ramp_bound_s(&one, 0.1, skip_us).is_none());
 }
 
 #[test]

@@ -47,7 +47,8 @@
 //!
 //! # Scoring helpers
 //! [`delay_bound_s`] is the physical yardstick for any delay estimate on a
-//! run: how well GPS velocities over a window can pin the delay at all.
+//! run: how well GPS velocities over a window can pin the delay at all;
+//! [`delay_ramp_bound_s`] the same for a delay that changes linearly.
 //! [`noise_floor()`] derives what Table 3's noise allows any filter to reach
 //! at hover; [`trajectory_bound()`] what the run's own sensors allow along
 //! its true trajectory, biases and delay included.
@@ -574,6 +575,48 @@ pub fn delay_bound_s(
             return None;
         }
         sum_sq += velocity_var_m2_s2 / information;
+        count += 1;
+    }
+    (count > 0).then(|| (sum_sq / count as f64).sqrt())
+}
+
+/// The same bound for a delay that changes linearly, `tau(t) = tau_0 + r t`,
+/// estimated from every fix since the first (no window).
+///
+/// With the regressor `h_j = (1, t_j)` and the weights
+/// `w_j = |a(t_j - tau_j)|^2 / sigma_v^2`, the Fisher information of
+/// `(tau_0, r)` after fix `k` is `F_k = sum_{j <= k} w_j h_j h_j^T`, and no
+/// unbiased estimate of `tau(t_k)` can have a variance below
+/// `h_k^T F_k^-1 h_k`. Returns the RMS of that bound over the fixes received
+/// at or after `skip_us`; `None` while `F_k` is singular at a scored fix
+/// (fewer than two fixes with motion). An estimator that does not know the
+/// delay is a straight line cannot do better than this; one that models it
+/// as constant is bounded by [`delay_bound_s`] with a window of the whole run,
+/// which is only valid while it is constant.
+pub fn delay_ramp_bound_s(
+    fixes: &[(u64, Vector3<f64>)],
+    velocity_var_m2_s2: f64,
+    skip_us: u64,
+) -> Option<f64> {
+    let t0 = fixes.first()?.0;
+    // Fisher information entries in seconds from the first fix.
+    let (mut f00, mut f01, mut f11) = (0.0f64, 0.0f64, 0.0f64);
+    let mut sum_sq = 0.0;
+    let mut count = 0usize;
+    for &(t_us, accel) in fixes {
+        let t = (t_us - t0) as f64 * 1e-6;
+        let w = accel.norm_squared();
+        f00 += w;
+        f01 += w * t;
+        f11 += w * t * t;
+        if t_us < skip_us {
+            continue;
+        }
+        let det = f00 * f11 - f01 * f01;
+        if det.is_nan() || det <= 0.0 {
+            return None;
+        }
+        sum_sq += velocity_var_m2_s2 * (f11 - 2.0 * t * f01 + t * t * f00) / det;
         count += 1;
     }
     (count > 0).then(|| (sum_sq / count as f64).sqrt())
