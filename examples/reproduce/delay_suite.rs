@@ -10,7 +10,10 @@
 //! row says otherwise: the `proposed` navigator, no offline calibration, start 0.1 s, 60 s runs,
 //! `--seeds` seeds (default 5) with the median reported, delay RMSE scored from 20 s. A row whose
 //! behaviour cannot run (the navigator refuses its configuration) has `measured: null` and
-//! `passed: false`; it is never skipped. Seeds run on two threads.
+//! `passed: false`; it is never skipped. Seeds run on two threads. The RMSE rows also carry
+//! `information_bound`: the delay RMSE that no estimator can beat on the same runs (the
+//! Cramér-Rao bound of every GPS velocity since the start, the acceleration known), so that a
+//! row's figure can be read against what its motion allows.
 
 use super::{
     CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, UNCALIBRATED_START, calibrate,
@@ -19,7 +22,8 @@ use super::{
 use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig, DelayStatus};
 use delaynav::nav::{DelayCompensatedNav, DelayMode};
 use delaynav::sim::{
-    DelayProfile, DelayRamp, DelayStep, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
+    DelayProfile, DelayRamp, DelayStep, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent,
+    Simulation, delay_bound_s, delay_ramp_bound_s,
 };
 use delaynav::{Aekf17Config, AugmentedEkf17, Navigator};
 use nalgebra::Vector3;
@@ -74,6 +78,11 @@ pub struct Row {
     pub measured: Option<f64>,
     /// The limit.
     pub limit: Limit,
+    /// For the RMSE rows, what no estimator can beat on the row's runs, in
+    /// the row's unit: the Cramér-Rao bound of the GPS velocities given the
+    /// true acceleration and every fix since the start (median over seeds;
+    /// see [`information_bound_ms`]).
+    pub bound: Option<f64>,
 }
 
 impl Row {
@@ -90,6 +99,7 @@ impl Row {
             "criterion": self.criterion,
             "measured": self.measured.filter(|x| x.is_finite()),
             "limit": self.limit.to_json(),
+            "information_bound": self.bound,
         })
     }
 }
@@ -520,7 +530,45 @@ fn rmse_row(
         criterion,
         measured,
         limit: Limit::Max(limit_ms),
+        bound: information_bound_ms(name, &options.seeds),
     }
+}
+
+/// The delay information of row `name`'s runs, as the RMS from
+/// [`SCORE_FROM_S`] of the Cramér-Rao bound of an estimator that knows the
+/// acceleration exactly and keeps every GPS velocity since the start: a
+/// constant delay ([`delay_bound_s`] with a window of the whole run) or, for
+/// `delay_ramp`, a straight line ([`delay_ramp_bound_s`]); median over the
+/// seeds, ms. The position fixes are left out (they carry `|v|^2 / sigma_p^2`
+/// more, a few per cent here), and so are the unknown velocity offset,
+/// attitude and biases, which a real estimator must also find: no estimator
+/// does better, and a real one does worse.
+fn information_bound_ms(name: &str, seeds: &[u64]) -> Option<f64> {
+    let bounds: Option<Vec<f64>> = per_seed(seeds, |seed| {
+        let (config, _) = row_run(name, seed)?;
+        let fixes: Vec<(u64, Vector3<f64>)> = events(&config)
+            .iter()
+            .filter_map(|e| match e {
+                SimEvent::Gps {
+                    fix,
+                    truth_at_validity,
+                    ..
+                } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
+                _ => None,
+            })
+            .collect();
+        let var = config.sensors.gps_velocity_var_m2_s2;
+        let skip_us = (SCORE_FROM_S * 1e6) as u64;
+        let whole_run_us = (RUN_S * 1e6) as u64 + 1;
+        if name == "delay_ramp" {
+            delay_ramp_bound_s(&fixes, var, skip_us)
+        } else {
+            delay_bound_s(&fixes, var, whole_run_us, skip_us)
+        }
+    })
+    .into_iter()
+    .collect();
+    bounds.map(|b| median(b.into_iter().map(|x| x * 1e3).collect()))
 }
 
 fn with_gps_rate(mut config: SimConfig, rate_hz: f64) -> SimConfig {
@@ -541,11 +589,13 @@ pub fn run(options: &SuiteOptions) -> Vec<Row> {
     let mut rows = Vec::new();
     let mut push = |row: Row| {
         eprintln!(
-            "{:<22} {:<6} measured {:>10} limit {:?}",
+            "{:<22} {:<6} measured {:>10} limit {:?}{}",
             row.name,
             if row.passed() { "PASS" } else { "FAIL" },
             row.measured.map_or("null".into(), |x| format!("{x:.4}")),
-            row.limit
+            row.limit,
+            row.bound
+                .map_or(String::new(), |b| format!(" (information bound {b:.2})")),
         );
         rows.push(row);
     };
@@ -597,6 +647,7 @@ fn delay_step_row(options: &SuiteOptions) -> Row {
         criterion: "s after the 0.2 -> 0.35 s step at 20 s until the error stays <= 10 ms (median)",
         measured,
         limit: Limit::Max(8.0),
+        bound: None,
     }
 }
 
@@ -629,6 +680,7 @@ fn out_of_range_row(options: &SuiteOptions) -> Row {
             .collect::<Option<Vec<f64>>>()
             .map(median_with_infinity),
         limit: Limit::Max(30.0),
+        bound: None,
     }
 }
 
@@ -661,6 +713,7 @@ fn sigma_coverage_row(options: &SuiteOptions) -> Row {
         criterion: "fraction of samples from 10 s with |error| <= reported 1-sigma, low and high, calibrated start, pooled",
         measured: (!refused && total > 0).then(|| inside as f64 / total as f64),
         limit: Limit::Band(0.55, 0.80),
+        bound: None,
     }
 }
 
@@ -682,6 +735,7 @@ fn aekf17_hover_row(options: &SuiteOptions) -> Row {
         criterion: "AEKF17, 60 s hover, true 0.2 s: |final error| / final sigma (median)",
         measured,
         limit: Limit::Max(3.0),
+        bound: None,
     }
 }
 
