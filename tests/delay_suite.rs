@@ -50,6 +50,12 @@ fn shortened_suite_writes_the_issue_rows() {
             .find(|r| r["name"] == name)
             .is_some_and(|r| r["passed"] == true)
     };
+    // Only the RMSE rows have an information bound (3.14 ms measured for
+    // negative_delay), and it is below their limit.
+    let bounds = json["information_bounds"].as_object().expect("an object");
+    assert_eq!(bounds.keys().collect::<Vec<_>>(), ["negative_delay"]);
+    let bound = bounds["negative_delay"].as_f64().expect("a number");
+    assert!(bound > 1.0 && bound < 10.0, "{bound}");
     // The rows the loop passes (seed 1 measured 2.3 s, 3.5 ms, 20.4 s).
     for name in ["delay_step", "negative_delay", "out_of_range_reported"] {
         assert!(passed(name), "{name}: {json:#}");
