@@ -81,12 +81,43 @@
 //! the navigation states on its account is not warranted. Clamps are
 //! counted ([`AugmentedEkf17::delay_clamps`]).
 //!
-//! # Observability
-//! `tau` is seen through `v` (position block) and `a` (velocity block).
-//! With no velocity and no horizontal acceleration the fix says nothing
-//! about `tau` beyond the vertical `g` that the accelerometer cancels;
-//! its variance then grows with the random walk instead of collapsing
-//! (tested).
+//! # Observability: `tau` is updated only under acceleration
+//! `tau` enters the fix through `∂h_r/∂tau = a tau - v` (m/s) and
+//! `∂h_v/∂tau = -a` (m/s², NED). A constant velocity does not make it
+//! observable: `r(t - tau) = r(t) - v tau` differs from `r(t)` by a
+//! constant offset that the position state absorbs as well; only a change
+//! of velocity (`a != 0`) tells the delay from a position error. At hover
+//! `a` is noise (the accelerometer's, and tilt and bias errors times `g`);
+//! regressing the innovations on it drifts `tau` while its variance shrinks.
+//! So a fix updates `tau` only when the excitation clears a threshold:
+//!
+//! ```text
+//! |a_s|² - 3 σ_s²  >=  a_min²        (m²/s⁴; a_min = delay_min_accel_m_s2)
+//! ```
+//!
+//! `a_s` is the smoothed acceleration of the GPS model (NED, all three
+//! axes: a vertical manoeuvre shows `tau` too) and `3 σ_s²` the expected
+//! square norm of its noise, removed from the excitation. Otherwise the fix
+//! is fused with a Schmidt (consider) update: the gain's row of `tau` is
+//! zeroed, `K' = C K` with `C = I - e_tau e_tau^T`
+//! ([`kalman::joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+//!
+//! - `tau` keeps its value; the 16 other states take the fix with the gain
+//!   `K` of the full filter, whose `S = H P H^T + R` still counts the
+//!   uncertainty of `tau` through `∂h/∂tau`;
+//! - the Joseph form `P' = (I - K'H) P (I - K'H)^T + K' R K'^T` is the
+//!   covariance of the error for any gain. Row `tau` of `I - K'H` is
+//!   `e_tau^T`, so `P'_tau,tau = P_tau,tau`: the fix does not shrink it, and
+//!   between fixes it grows by `delay_random_walk² dt` (s²). The
+//!   cross-covariances `P'_tau,j = (P (I - K'H)^T)_tau,j` follow the other
+//!   states' correction, so `P` stays symmetric, positive semi-definite and
+//!   consistent with the errors;
+//! - the fix is counted in [`AugmentedEkf17::delay_unobservable_fixes`].
+//!
+//! Without a smoothed acceleration (no IMU step since initialization or
+//! since a gap) the gate is closed. `delay_min_accel_m_s2 = 0` never gates:
+//! the paper's filter. With no motion at all, the variance of `tau` grows
+//! with the random walk (tested).
 //!
 //! # Bad input
 //! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
@@ -140,6 +171,7 @@ pub struct AugmentedEkf17<T: Scalar> {
     core: NavCore<T, AUGMENTED_STATES>,
     config: Aekf17Config<T>,
     delay_clamps: u32,
+    delay_unobservable_fixes: u32,
     smoothed: Option<SmoothedAcceleration<T>>,
 }
 
@@ -179,6 +211,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
         core: NavCore::BLANK,
         config: Aekf17Config::ZEROED,
         delay_clamps: 0,
+        delay_unobservable_fixes: 0,
         smoothed: None,
     };
 
@@ -196,6 +229,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
         configured?;
         self.config = config;
         self.delay_clamps = 0;
+        self.delay_unobservable_fixes = 0;
         self.smoothed = None;
         Ok(())
     }
@@ -236,6 +270,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
             )?,
             config,
             delay_clamps: 0,
+            delay_unobservable_fixes: 0,
             smoothed: None,
         })
     }
@@ -298,6 +333,35 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// clamped back (see the module docs).
     pub fn delay_clamps(&self) -> u32 {
         self.delay_clamps
+    }
+
+    /// How many fixes were fused without updating `tau` because the
+    /// motion did not make it observable (`delay_min_accel_m_s2`, see the
+    /// module docs); `tau` then kept its value and its variance grew.
+    pub fn delay_unobservable_fixes(&self) -> u32 {
+        self.delay_unobservable_fixes
+    }
+
+    /// True when the smoothed acceleration clears `delay_min_accel_m_s2`
+    /// once the expected square norm of its error is removed (see the module
+    /// docs, m²/s⁴). Without a smoothed value (no IMU step since
+    /// initialization or a gap) the excitation is unknown: false unless the
+    /// gate is off.
+    fn delay_observable(&self) -> bool {
+        let a_min = self.config.delay_min_accel_m_s2;
+        if a_min == T::zero() {
+            return true;
+        }
+        let Some(a) = self.smoothed else {
+            return false;
+        };
+        let g_tilt = self.config.nav.gravity_m_s2 * self.core.tilt_std();
+        let p = self.core.covariance();
+        let bias_variance = (0..3).fold(T::zero(), |acc, i| {
+            acc + p[(ACCEL_BIAS + i, ACCEL_BIAS + i)]
+        });
+        let error = T::lit(3.0) * a.noise_variance + T::lit(2.0) * g_tilt * g_tilt + bias_variance;
+        a.ned_m_s2.norm_squared() - error >= a_min * a_min
     }
 
     crate::ekf16::nav_core::core_accessors!();
@@ -400,20 +464,32 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
 
     /// Fuses the delayed position then the delayed velocity (eq. 11, see
     /// [`measurement`]), each block gated on its own, `tau` kept in range
-    /// after each.
+    /// after each; without the motion that makes `tau` observable, its row
+    /// of the gain is zero (see the module docs).
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let unobservable = !self.delay_observable();
+        let restriction = unobservable.then(|| {
+            let mut c = AugmentedCovariance::<T>::identity();
+            c[(DELAY, DELAY)] = T::zero();
+            c
+        });
         let (config, smoothed) = (&self.config, self.smoothed);
         let clamps = &mut self.delay_clamps;
-        self.core.push_gps(
+        let outcome = self.core.push_gps(
             gps,
             |core, block, m| delayed_gps_model(core, config, smoothed, block, m),
+            restriction.as_ref(),
             // Keep tau in [0, max_delay_s], P untouched (see the module docs).
             |core| {
                 if core.clamp_extra_state(DELAY, T::zero(), config.max_delay_s) {
                     *clamps = clamps.saturating_add(1);
                 }
             },
-        )
+        )?;
+        if unobservable && matches!(outcome, GpsOutcome::Fused { .. }) {
+            self.delay_unobservable_fixes = self.delay_unobservable_fixes.saturating_add(1);
+        }
+        Ok(outcome)
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
