@@ -16,10 +16,11 @@
 //! 100 s without information), bound it to one second and smooth the
 //! acceleration over 50 ms (see the module docs of
 //! [`aekf17`](super) for why the raw sample biases `tau` toward zero). A
-//! fix updates `tau` only while the smoothed acceleration, its noise
-//! removed, is at least 0.5 m/s² (the delay loop's motion threshold,
-//! `min_accel_variance_m2_s4 = 0.25` (m/s²)²); below it `tau` is not
-//! observable and is left to its random walk (module docs, "Observability").
+//! fix updates `tau` only while the smoothed acceleration clears 0.5 m/s²
+//! (the delay loop's motion threshold, `min_accel_variance_m2_s4 = 0.25`
+//! (m/s²)²) above what its noise, tilt and bias errors give; below it `tau`
+//! is not observable and is left to its random walk (module docs,
+//! "Observability").
 
 use crate::ekf16::Ekf16Config;
 use crate::error::{Error, check};
@@ -45,10 +46,11 @@ pub struct Aekf17Config<T: Scalar> {
     /// seconds; 0 uses the last IMU sample as the paper does.
     pub accel_smoothing_s: T,
     /// Acceleration a fix needs for its update of `tau`, m/s² (NED, the
-    /// smoothed `a` of the GPS model with its noise removed: a fix updates
-    /// `tau` when `|a|² - 3 σ_s² >= delay_min_accel_m_s2²`). Below it the
-    /// other states are updated and `tau` keeps its value while its variance
-    /// grows by its random walk. 0 never gates (the paper's filter).
+    /// smoothed `a` of the GPS model: a fix updates `tau` when `|a|²` is at
+    /// least `delay_min_accel_m_s2²` plus what the errors of `a` give, see
+    /// the module docs). Below it the other states are updated and `tau`
+    /// keeps its value while its variance grows by its random walk. 0 never
+    /// gates (the paper's filter).
     pub delay_min_accel_m_s2: T,
 }
 
