@@ -9,12 +9,18 @@
 //! | `delay_random_walk` | s/√s | density of the random walk of `tau` (variance grows by its square per second) |
 //! | `max_delay_s` | s | upper end of the admissible range `[0, max_delay_s]` |
 //! | `accel_smoothing_s` | s | time constant of the low-pass on the acceleration `a` of the GPS model (0: the raw last sample) |
+//! | `delay_min_accel_m_s2` | m/s² | acceleration below which a fix does not update `tau` (0: never gated) |
 //!
 //! The defaults start at 0.1 s with a 0.1 s standard deviation (receivers
 //! of this class lag 0.1-0.4 s), let `tau` wander by 1 ms/√s (10 ms in
 //! 100 s without information), bound it to one second and smooth the
 //! acceleration over 50 ms (see the module docs of
-//! [`aekf17`](super) for why the raw sample biases `tau` toward zero).
+//! [`aekf17`](super) for why the raw sample biases `tau` toward zero). A
+//! fix updates `tau` only while the smoothed acceleration clears 0.5 m/s²
+//! (the delay loop's motion threshold, `min_accel_variance_m2_s4 = 0.25`
+//! (m/s²)²) above what its noise, tilt and bias errors give; below it `tau`
+//! is not observable and is left to its random walk (module docs,
+//! "Observability").
 
 use crate::ekf16::Ekf16Config;
 use crate::error::{Error, check};
@@ -39,6 +45,13 @@ pub struct Aekf17Config<T: Scalar> {
     /// navigation-frame acceleration `a` used by the delayed GPS model,
     /// seconds; 0 uses the last IMU sample as the paper does.
     pub accel_smoothing_s: T,
+    /// Acceleration a fix needs for its update of `tau`, m/s² (NED, the
+    /// smoothed `a` of the GPS model: a fix updates `tau` when `|a|²` is at
+    /// least `delay_min_accel_m_s2²` plus what the errors of `a` give, see
+    /// the module docs). Below it the other states are updated and `tau`
+    /// keeps its value while its variance grows by its random walk. 0 never
+    /// gates (the paper's filter).
+    pub delay_min_accel_m_s2: T,
 }
 
 impl<T: Scalar> Aekf17Config<T> {
@@ -50,6 +63,7 @@ impl<T: Scalar> Aekf17Config<T> {
         delay_random_walk: T::ZERO,
         max_delay_s: T::ZERO,
         accel_smoothing_s: T::ZERO,
+        delay_min_accel_m_s2: T::ZERO,
     };
 }
 
@@ -62,6 +76,7 @@ impl<T: Scalar> Default for Aekf17Config<T> {
             delay_random_walk: T::lit(1e-3),
             max_delay_s: T::lit(1.0),
             accel_smoothing_s: T::lit(0.05),
+            delay_min_accel_m_s2: T::lit(0.5),
         }
     }
 }
@@ -89,6 +104,7 @@ impl<T: Scalar> Aekf17Config<T> {
         check::positive_finite("initial_delay_std_s", self.initial_delay_std_s)?;
         check::not_negative("delay_random_walk", self.delay_random_walk)?;
         check::not_negative("accel_smoothing_s", self.accel_smoothing_s)?;
+        check::not_negative("delay_min_accel_m_s2", self.delay_min_accel_m_s2)?;
         Ok(())
     }
 }

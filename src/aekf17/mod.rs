@@ -81,12 +81,55 @@
 //! the navigation states on its account is not warranted. Clamps are
 //! counted ([`AugmentedEkf17::delay_clamps`]).
 //!
-//! # Observability
-//! `tau` is seen through `v` (position block) and `a` (velocity block).
-//! With no velocity and no horizontal acceleration the fix says nothing
-//! about `tau` beyond the vertical `g` that the accelerometer cancels;
-//! its variance then grows with the random walk instead of collapsing
-//! (tested).
+//! # Observability: `tau` is updated only under acceleration
+//! `tau` enters the fix through `∂h_r/∂tau = a tau - v` (m/s) and
+//! `∂h_v/∂tau = -a` (m/s², NED). A constant velocity does not make it
+//! observable: `r(t - tau) = r(t) - v tau` differs from `r(t)` by a
+//! constant offset that the position state absorbs as well; only a change
+//! of velocity (`a != 0`) tells the delay from a position error. At hover
+//! `a` is noise (the accelerometer's, and tilt and bias errors times `g`);
+//! regressing the innovations on it drifts `tau` while its variance shrinks.
+//! So a fix updates `tau` only when the excitation clears a threshold
+//! above what the errors of `a_s` alone would give (m²/s⁴):
+//!
+//! ```text
+//! |a_s|²  >=  a_min² + 16.27 σ_s² + 2 g² σ_tilt² + tr P_bf      a_min = delay_min_accel_m_s2
+//! ```
+//!
+//! - `a_s`: the smoothed acceleration of the GPS model (m/s², NED, all three
+//!   axes: a vertical manoeuvre shows `tau` too);
+//! - `16.27 σ_s²`: its white noise (variance `σ_s²` per axis, above) has a
+//!   square norm `σ_s² χ²(3)`, below this 99.9 % quantile on 999 fixes in
+//!   1000, so noise alone almost never opens the gate (with the default
+//!   50 ms smoothing and the Table 3 noise, `σ_s ≈ 0.1 m/s²`: 0.16 m²/s⁴;
+//!   with the raw sample, `accel_smoothing_s = 0`, 16 m²/s⁴);
+//! - `2 g² σ_tilt²`: a tilt error `δθ` (rad, `σ_tilt` the larger north/east
+//!   standard deviation, [`tilt_std`](AugmentedEkf17::tilt_std)) shows `g δθ`
+//!   of gravity in each horizontal axis, large while the attitude aligns;
+//! - `tr P_bf`: the accelerometer bias's variance (m²/s⁴, the trace is the
+//!   same in the body and navigation frames).
+//!
+//! Otherwise the fix
+//! is fused with a Schmidt (consider) update: the gain's row of `tau` is
+//! zeroed, `K' = C K` with `C = I - e_tau e_tau^T`
+//! ([`kalman::joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+//!
+//! - `tau` keeps its value; the 16 other states take the fix with the gain
+//!   `K` of the full filter, whose `S = H P H^T + R` still counts the
+//!   uncertainty of `tau` through `∂h/∂tau`;
+//! - the Joseph form `P' = (I - K'H) P (I - K'H)^T + K' R K'^T` is the
+//!   covariance of the error for any gain. Row `tau` of `I - K'H` is
+//!   `e_tau^T`, so `P'_tau,tau = P_tau,tau`: the fix does not shrink it, and
+//!   between fixes it grows by `delay_random_walk² dt` (s²). The
+//!   cross-covariances `P'_tau,j = (P (I - K'H)^T)_tau,j` follow the other
+//!   states' correction, so `P` stays symmetric, positive semi-definite and
+//!   consistent with the errors;
+//! - the fix is counted in [`AugmentedEkf17::delay_unobservable_fixes`].
+//!
+//! Without a smoothed acceleration (no IMU step since initialization or
+//! since a gap) the gate is closed. `delay_min_accel_m_s2 = 0` never gates:
+//! the paper's filter. With no motion at all, the variance of `tau` grows
+//! with the random walk (tested).
 //!
 //! # Bad input
 //! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
@@ -140,8 +183,14 @@ pub struct AugmentedEkf17<T: Scalar> {
     core: NavCore<T, AUGMENTED_STATES>,
     config: Aekf17Config<T>,
     delay_clamps: u32,
+    delay_unobservable_fixes: u32,
     smoothed: Option<SmoothedAcceleration<T>>,
 }
+
+/// The 99.9 % quantile of a chi-square of 3 degrees of freedom: the square
+/// norm of the smoothed acceleration's noise stays below it times `σ_s²`
+/// on 999 samples in 1000 (module docs, "Observability").
+const NOISE_QUANTILE_CHI2_3DOF: f64 = 16.27;
 
 /// The low-passed navigation-frame acceleration and the variance of its noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -179,6 +228,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
         core: NavCore::BLANK,
         config: Aekf17Config::ZEROED,
         delay_clamps: 0,
+        delay_unobservable_fixes: 0,
         smoothed: None,
     };
 
@@ -196,6 +246,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
         configured?;
         self.config = config;
         self.delay_clamps = 0;
+        self.delay_unobservable_fixes = 0;
         self.smoothed = None;
         Ok(())
     }
@@ -236,6 +287,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
             )?,
             config,
             delay_clamps: 0,
+            delay_unobservable_fixes: 0,
             smoothed: None,
         })
     }
@@ -298,6 +350,36 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// clamped back (see the module docs).
     pub fn delay_clamps(&self) -> u32 {
         self.delay_clamps
+    }
+
+    /// How many fixes were fused without updating `tau` because the
+    /// motion did not make it observable (`delay_min_accel_m_s2`, see the
+    /// module docs); `tau` then kept its value and its variance grew.
+    pub fn delay_unobservable_fixes(&self) -> u32 {
+        self.delay_unobservable_fixes
+    }
+
+    /// True when the smoothed acceleration clears `delay_min_accel_m_s2`
+    /// above what its errors alone would give (see the module docs, m²/s⁴).
+    /// Without a smoothed value (no IMU step since initialization or a gap)
+    /// the excitation is unknown: false unless the gate is off.
+    fn delay_observable(&self) -> bool {
+        let a_min = self.config.delay_min_accel_m_s2;
+        if a_min == T::zero() {
+            return true;
+        }
+        let Some(a) = self.smoothed else {
+            return false;
+        };
+        let g_tilt = self.config.nav.gravity_m_s2 * self.core.tilt_std();
+        let p = self.core.covariance();
+        let bias_variance = (0..3).fold(T::zero(), |acc, i| {
+            acc + p[(ACCEL_BIAS + i, ACCEL_BIAS + i)]
+        });
+        let errors = T::lit(NOISE_QUANTILE_CHI2_3DOF) * a.noise_variance
+            + T::lit(2.0) * g_tilt * g_tilt
+            + bias_variance;
+        a.ned_m_s2.norm_squared() >= a_min * a_min + errors
     }
 
     crate::ekf16::nav_core::core_accessors!();
@@ -400,20 +482,32 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
 
     /// Fuses the delayed position then the delayed velocity (eq. 11, see
     /// [`measurement`]), each block gated on its own, `tau` kept in range
-    /// after each.
+    /// after each; without the motion that makes `tau` observable, its row
+    /// of the gain is zero (see the module docs).
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
+        let unobservable = !self.delay_observable();
+        let restriction = unobservable.then(|| {
+            let mut c = AugmentedCovariance::<T>::identity();
+            c[(DELAY, DELAY)] = T::zero();
+            c
+        });
         let (config, smoothed) = (&self.config, self.smoothed);
         let clamps = &mut self.delay_clamps;
-        self.core.push_gps(
+        let outcome = self.core.push_gps(
             gps,
             |core, block, m| delayed_gps_model(core, config, smoothed, block, m),
+            restriction.as_ref(),
             // Keep tau in [0, max_delay_s], P untouched (see the module docs).
             |core| {
                 if core.clamp_extra_state(DELAY, T::zero(), config.max_delay_s) {
                     *clamps = clamps.saturating_add(1);
                 }
             },
-        )
+        )?;
+        if unobservable && matches!(outcome, GpsOutcome::Fused { .. }) {
+            self.delay_unobservable_fixes = self.delay_unobservable_fixes.saturating_add(1);
+        }
+        Ok(outcome)
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {

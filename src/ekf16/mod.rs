@@ -417,6 +417,7 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
                     }
                 }
             },
+            None,
             |_| {},
         )
     }

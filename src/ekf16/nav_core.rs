@@ -29,7 +29,7 @@
 //!   fix ([`GpsStep::Initialized`]); afterwards it returns the
 //!   [`GpsMeasurement`] for the filter's own GPS model.
 //!   [`NavCore::push_gps`] does the whole cycle with a filter's model: begin,
-//!   fuse position then velocity with [`NavCore::fuse`], store the records
+//!   fuse position then velocity with [`NavCore::fuse_restricted`], store the records
 //!   with [`NavCore::record_gps`]. Each block then goes through
 //!   `NavCore::gps_block_verdict` (its own rejection timer,
 //!   `gps_reset_timeout_us`, and its NIS window, `gps_nis_window` /
@@ -37,8 +37,9 @@
 //!   that block alone to the fix (counted per block in [`RefusalCounters`],
 //!   recorded as the last [`GpsReset`]). Geodetic and NED fixes cannot be
 //!   mixed ([`check_position_kind`], shared with the navigator).
-//! - [`NavCore::fuse`]: any `M`-dim block `(y, H (M x N), R)` through
-//!   [`kalman::joseph_update`], then renormalizes the quaternion. A rejected or
+//! - [`NavCore::fuse_restricted`]: any `M`-dim block `(y, H (M x N), R)` through
+//!   [`kalman::joseph_update_restricted`] (the gain optionally restricted to
+//!   `C K`), then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
 //! - [`NavCore::push_mag`]: the magnetometer update of
 //!   [`measurement`](super::measurement) (or keeps the sample for
@@ -966,24 +967,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// Fuses one `M`-dimensional block `y = z - h(x)`, `H` (`M x N`), `R`
-    /// with the given chi-square gate (see [`kalman::joseph_update`]), then
-    /// renormalizes the quaternion. A fusion that would leave the quaternion
-    /// far from unit norm (an absurd correction) is reverted and reported as
-    /// rejected.
-    pub(crate) fn fuse<const M: usize>(
-        &mut self,
-        t_us: u64,
-        innovation: &SVector<T, M>,
-        h: &SMatrix<T, M, N>,
-        r: &SMatrix<T, M, M>,
-        gate: T,
-        measurement: &'static str,
-    ) -> Result<FusionRecord<T, M>, Error> {
-        self.fuse_restricted(t_us, innovation, h, r, gate, measurement, None)
-    }
-
-    /// [`NavCore::fuse`] with the gain restricted to `C K`
-    /// ([`kalman::joseph_update_restricted`]).
+    /// with the given chi-square gate and the gain restricted to `C K`
+    /// (`None`: unrestricted; see [`kalman::joseph_update_restricted`]),
+    /// then renormalizes the quaternion. A fusion that would leave the
+    /// quaternion far from unit norm (an absurd correction) is reverted and
+    /// reported as rejected.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn fuse_restricted<const M: usize>(
         &mut self,
@@ -1023,12 +1011,14 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// Feeds one GPS fix: [`NavCore::begin_gps`], then the position block
     /// and the velocity block, each linearized by `model` at the state left
-    /// by the previous step, fused with its gate and followed by
+    /// by the previous step, fused with its gate (and the gain restricted by
+    /// `gain_restriction`, see [`NavCore::fuse_restricted`]) and followed by
     /// `after_fusion`; the records are stored with [`NavCore::record_gps`].
     pub(crate) fn push_gps<G: GpsFix<T> + ?Sized>(
         &mut self,
         gps: &G,
         mut model: impl FnMut(&Self, GpsBlock, &GpsMeasurement<T>) -> GpsBlockModel<T, N>,
+        gain_restriction: Option<&SMatrix<T, N, N>>,
         mut after_fusion: impl FnMut(&mut Self),
     ) -> Result<GpsOutcome<T>, Error> {
         let m = match self.begin_gps(gps)? {
@@ -1038,24 +1028,26 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         let (h, jac, r) = model(self, GpsBlock::Position, &m);
         let gate = self.config.gps_position_gate;
-        let position = self.fuse(
+        let position = self.fuse_restricted(
             m.t_us,
             &(m.position_ned_m - h),
             &jac,
             &r,
             gate,
             "gps.position",
+            gain_restriction,
         )?;
         after_fusion(self);
         let (h, jac, r) = model(self, GpsBlock::Velocity, &m);
         let gate = self.config.gps_velocity_gate;
-        let velocity = self.fuse(
+        let velocity = self.fuse_restricted(
             m.t_us,
             &(m.velocity_ned_m_s - h),
             &jac,
             &r,
             gate,
             "gps.velocity",
+            gain_restriction,
         )?;
         after_fusion(self);
         self.record_gps(position, velocity);
@@ -1346,13 +1338,14 @@ mod tests {
                     let (h, jac) = measurement::gps_position(&x16, &Vector3::zeros());
                     let gate = core.config().gps_position_gate;
                     let rec = core
-                        .fuse(
+                        .fuse_restricted(
                             m.t_us,
                             &(m.position_ned_m - h),
                             &NavCore::<f64, N>::widen(&jac),
                             &m.position_noise,
                             gate,
                             "gps.position",
+                            None,
                         )
                         .unwrap();
                     assert!(rec.fused);
