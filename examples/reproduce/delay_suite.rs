@@ -829,9 +829,10 @@ pub struct TraceSummary {
     /// `navigator` (as the suite scores it), and with `compare` `oracle_accel`
     /// and `true_accel`.
     pub rmse_ms: Vec<(&'static str, f64)>,
-    /// The Cramer-Rao bound of the delay from every GPS fix since the start
-    /// (true acceleration, the GPS velocity noise), RMS from 20 s, ms: no
-    /// unbiased estimator that starts without information does better.
+    /// The Cramer-Rao bound of the delay from every GPS velocity since the
+    /// start (true acceleration, the GPS velocity noise), RMS from 20 s, ms:
+    /// no unbiased estimator from the GPS velocities that starts without
+    /// information does better.
     pub information_bound_ms: f64,
 }
 

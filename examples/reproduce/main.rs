@@ -1954,7 +1954,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
         eprintln!(
-            "{row} seed {}: Cramer-Rao bound from every fix since the start, RMS from 20 s {:.4} ms",
+            "{row} seed {}: Cramer-Rao bound from every GPS velocity since the start, RMS from 20 s {:.4} ms",
             args.seed, summary.information_bound_ms
         );
         eprintln!("wrote {} rows to {}", summary.rows, path.display());
@@ -2183,7 +2183,7 @@ mod delay_flags {
                 .iter()
                 .all(|(_, x)| x.is_finite() && *x > 0.0)
         );
-        // The Cramer-Rao bound from every fix so far: below what any of the
+        // The Cramer-Rao bound from every GPS velocity so far: below what any of the
         // three loops reaches (they use 5 s windows of smoothed signals).
         let bound = summary.information_bound_ms;
         assert!(bound > 1.0 && summary.rmse_ms.iter().all(|(_, x)| *x > bound));
