@@ -163,10 +163,15 @@ pub struct LoopTuning {
     pub innovation_acquire_noise_scale: Option<f64>,
     /// [`DelayLoopConfig::measurement_noise_ms2`], ms^2, every axis.
     pub measurement_noise_ms2: Option<f64>,
+    /// [`DelayLoopConfig::acquisition_motion_exponent`].
+    pub acquisition_motion_exponent: Option<f64>,
+    /// [`DelayLoopConfig::smoothing_cutoff_hz`], Hz.
+    pub smoothing_cutoff_hz: Option<f64>,
 }
 
 impl LoopTuning {
-    fn apply(self, config: &mut DelayLoopConfig<f64>) {
+    /// Sets the fields given on `config` (the others keep its values).
+    pub fn apply(self, config: &mut DelayLoopConfig<f64>) {
         if let Some(rate_std) = self.rate_std {
             config.fusion.rate_std = rate_std;
         }
@@ -194,6 +199,12 @@ impl LoopTuning {
         if let Some(r) = self.measurement_noise_ms2 {
             config.measurement_noise_ms2 = [r; 3];
         }
+        if let Some(e) = self.acquisition_motion_exponent {
+            config.acquisition_motion_exponent = e;
+        }
+        if let Some(f) = self.smoothing_cutoff_hz {
+            config.smoothing_cutoff_hz = f;
+        }
     }
 
     fn to_json(self) -> Value {
@@ -207,6 +218,8 @@ impl LoopTuning {
             "innovation_before_lock": self.innovation_before_lock,
             "innovation_acquire_noise_scale": self.innovation_acquire_noise_scale,
             "measurement_noise_ms2": self.measurement_noise_ms2,
+            "acquisition_motion_exponent": self.acquisition_motion_exponent,
+            "smoothing_cutoff_hz": self.smoothing_cutoff_hz,
         })
     }
 }
@@ -546,29 +559,24 @@ fn rmse_row(
 fn information_bound_ms(name: &str, seeds: &[u64]) -> Option<f64> {
     let bounds: Option<Vec<f64>> = per_seed(seeds, |seed| {
         let (config, _) = row_run(name, seed)?;
-        let fixes: Vec<(u64, Vector3<f64>)> = events(&config)
-            .iter()
-            .filter_map(|e| match e {
-                SimEvent::Gps {
-                    fix,
-                    truth_at_validity,
-                    ..
-                } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
-                _ => None,
-            })
-            .collect();
-        let var = config.sensors.gps_velocity_var_m2_s2;
-        let skip_us = (SCORE_FROM_S * 1e6) as u64;
-        let whole_run_us = (RUN_S * 1e6) as u64 + 1;
-        if name == "delay_ramp" {
-            delay_ramp_bound_s(&fixes, var, skip_us)
-        } else {
-            delay_bound_s(&fixes, var, whole_run_us, skip_us)
-        }
+        run_information_bound_s(name, &config, &events(&config))
     })
     .into_iter()
     .collect();
     bounds.map(|b| median(b.into_iter().map(|x| x * 1e3).collect()))
+}
+
+/// [`information_bound_ms`] of one run of row `name`, s.
+fn run_information_bound_s(name: &str, config: &SimConfig, events: &[SimEvent]) -> Option<f64> {
+    let fixes = super::fix_accelerations(events);
+    let var = config.sensors.gps_velocity_var_m2_s2;
+    let skip_us = (SCORE_FROM_S * 1e6) as u64;
+    if name == "delay_ramp" {
+        delay_ramp_bound_s(&fixes, var, skip_us)
+    } else {
+        let whole_run_us = (config.duration_s * 1e6) as u64 + 1;
+        delay_bound_s(&fixes, var, whole_run_us, skip_us)
+    }
 }
 
 fn with_gps_rate(mut config: SimConfig, rate_hz: f64) -> SimConfig {
@@ -874,6 +882,10 @@ pub struct TraceSummary {
     /// `navigator` (as the suite scores it), and with `compare` `oracle_accel`
     /// and `true_accel`.
     pub rmse_ms: Vec<(&'static str, f64)>,
+    /// The row's information bound on this run ([`information_bound_ms`]:
+    /// the Cramér-Rao bound from every GPS velocity since the start, a line
+    /// for `delay_ramp`), RMS from 20 s, ms.
+    pub information_bound_ms: f64,
 }
 
 /// Squared-error sum and count from [`SCORE_FROM_S`] of one estimate.
@@ -1055,7 +1067,10 @@ pub fn write_trace(
     }
     let names = ["navigator", "oracle_accel", "true_accel"];
     let kept = if compare { 3 } else { 1 };
+    let information_bound_ms =
+        run_information_bound_s(name, &config, &events(&config)).map_or(f64::NAN, |s| s * 1e3);
     Ok(Some(TraceSummary {
+        information_bound_ms,
         rows,
         rmse_ms: names
             .into_iter()

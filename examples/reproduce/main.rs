@@ -206,6 +206,15 @@ struct Args {
     #[arg(long)]
     delay_innovation_before_lock: bool,
     /// With --delay-suite or --delay-trace: the delay loop's
+    /// `acquisition_motion_exponent` (1 to 4) [default: the loop's].
+    #[arg(long, value_name = "EXPONENT")]
+    delay_acquisition_exponent: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `smoothing_cutoff_hz` (both accelerations' common low-pass), Hz
+    /// [default: the loop's; `adapted_to_gps_rate` rows set their own].
+    #[arg(long, value_name = "HZ")]
+    delay_smoothing_cutoff: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
     /// `innovation_acquire_noise_scale` [default: the loop's].
     #[arg(long, value_name = "FACTOR")]
     delay_innovation_acquire_noise_scale: Option<f64>,
@@ -1605,6 +1614,22 @@ struct SeedResult {
     truth_trace: Vec<(f64, f64, f64)>,
 }
 
+/// Each GPS fix's receive time (us) and the true acceleration at its
+/// validity: what [`delay_bound_s`] reads.
+fn fix_accelerations(events: &[SimEvent]) -> Vec<(u64, Vector3<f64>)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            SimEvent::Gps {
+                fix,
+                truth_at_validity,
+                ..
+            } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
+            _ => None,
+        })
+        .collect()
+}
+
 /// Simulates one seed, calibrates, and runs every estimator on it.
 fn run_seed(
     scenario: Scenario,
@@ -1619,17 +1644,7 @@ fn run_seed(
     let trajectory = simulation.trajectory().clone();
     let events: Vec<SimEvent> = simulation.collect();
     let skip_us = (options.skip_s * 1e6).round() as u64;
-    let fixes: Vec<(u64, Vector3<f64>)> = events
-        .iter()
-        .filter_map(|e| match e {
-            SimEvent::Gps {
-                fix,
-                truth_at_validity,
-                ..
-            } => Some((fix.t_us, truth_at_validity.accel_m_s2)),
-            _ => None,
-        })
-        .collect();
+    let fixes = fix_accelerations(&events);
     let delay_bound_s = delay_bound_s(
         &fixes,
         config.sensors.gps_velocity_var_m2_s2,
@@ -1843,6 +1858,8 @@ fn delay_tuning(args: &Args) -> delay_suite::LoopTuning {
         innovation_before_lock: args.delay_innovation_before_lock,
         innovation_acquire_noise_scale: args.delay_innovation_acquire_noise_scale,
         measurement_noise_ms2: args.delay_measurement_noise,
+        acquisition_motion_exponent: args.delay_acquisition_exponent,
+        smoothing_cutoff_hz: args.delay_smoothing_cutoff,
     }
 }
 
@@ -1942,6 +1959,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 args.seed
             );
         }
+        eprintln!(
+            "{row} seed {}: information bound (Cramér-Rao from every GPS velocity since the start), RMS from 20 s {:.4} ms",
+            args.seed, summary.information_bound_ms
+        );
         eprintln!("wrote {} rows to {}", summary.rows, path.display());
         return Ok(());
     }
@@ -2114,6 +2135,18 @@ mod delay_flags {
         let defaults = suite_options(&parse(&["--delay-suite"]), 5).expect("no rows named");
         assert_eq!(defaults.rows, None);
         assert_eq!(defaults.tuning, delay_suite::LoopTuning::default());
+        let tried = parse(&[
+            "--delay-suite",
+            "--delay-acquisition-exponent",
+            "3",
+            "--delay-smoothing-cutoff",
+            "0.7",
+        ]);
+        let tuning = suite_options(&tried, 1).expect("valid").tuning;
+        let mut config = delaynav::delay::DelayLoopConfig::<f64>::default();
+        tuning.apply(&mut config);
+        assert_eq!(config.acquisition_motion_exponent, 3.0);
+        assert_eq!(config.smoothing_cutoff_hz, 0.7);
         let bad = suite_options(&parse(&["--delay-suite", "--rows", "cold_start"]), 1);
         assert!(bad.is_err_and(|e| e.contains("cold_start_low")));
     }
@@ -2156,6 +2189,11 @@ mod delay_flags {
                 .iter()
                 .all(|(_, x)| x.is_finite() && *x > 0.0)
         );
+        // The Cramer-Rao bound from every GPS velocity so far: below what each
+        // of the three loops reaches on this seed (a bound on the mean square
+        // over the noise; one lucky seed may score below it).
+        let bound = summary.information_bound_ms;
+        assert!(bound > 1.0 && summary.rmse_ms.iter().all(|(_, x)| *x > bound));
         let options = delay_suite::SuiteOptions {
             seeds: vec![2],
             coverage_seeds: vec![2],
