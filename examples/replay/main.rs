@@ -166,10 +166,12 @@ const ESTIMATORS: &[Registered] = &[
             let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
             health.initialized(nav.estimate().is_some());
             health.delay_status = Some(format!(
-                "state estimate {:.3} s +- {:.3} s, clamped to its range {} times",
+                "state estimate {:.3} s +- {:.3} s, clamped to its range {} times, \
+                 held on {} fixes without the motion to observe it",
                 nav.delay_s(),
                 nav.delay_std_s(),
-                nav.delay_clamps()
+                nav.delay_clamps(),
+                nav.delay_unobservable_fixes()
             ));
             Ok((summary, health))
         },
