@@ -372,10 +372,11 @@ impl<T: Scalar> AugmentedEkf17<T> {
             return false;
         };
         let g_tilt = self.config.nav.gravity_m_s2 * self.core.tilt_std();
-        let p = self.core.covariance();
-        let bias_variance = (0..3).fold(T::zero(), |acc, i| {
-            acc + p[(ACCEL_BIAS + i, ACCEL_BIAS + i)]
-        });
+        let bias_variance = self
+            .core
+            .covariance()
+            .fixed_view::<3, 3>(ACCEL_BIAS, ACCEL_BIAS)
+            .trace();
         let errors = T::lit(NOISE_QUANTILE_CHI2_3DOF) * a.noise_variance
             + T::lit(2.0) * g_tilt * g_tilt
             + bias_variance;
