@@ -12,8 +12,8 @@ use delaynav::nav::{
     WhiteningFilter,
 };
 use delaynav::{
-    Ekf16Config, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator,
-    Scalar,
+    DelayStatus, Ekf16Config, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome,
+    Navigator, Scalar,
 };
 use nalgebra::Vector3;
 
@@ -139,6 +139,66 @@ macro_rules! nav_tests {
                 assert_eq!(delays.gyro_s, T::lit(tau));
                 assert_eq!(nav.delay_std_s(), T::lit(0.0));
                 assert!(nav.last_delay_update().is_none());
+            }
+
+            /// `NavConfig::gps_noise_from_delay`: while the loop acquires
+            /// (a cold start, sigma 0.29 s while this flight's motion builds
+            /// up, 0.04-0.14 s at 10-20 s) the horizon's GPS velocity
+            /// innovations are widened by `sigma^2 a a'` (by half the
+            /// filter's own 0.12 (m/s)^2 on average); once it has
+            /// locked the widening is small. Off, the same flight gives
+            /// the paper's navigator, and its innovation variances are the
+            /// filter's own. Before the loop locks and over the last 20 s,
+            /// the mean of the velocity innovation variances (3 axes) over
+            /// the fused fixes.
+            #[test]
+            fn gps_noise_grows_with_the_delay_uncertainty() {
+                let flight = lively(3);
+                let suite = Suite::simulator();
+                let events = fly(&flight, &suite, 80.0, |_| 0.2, None);
+                let run = |widen: bool| {
+                    let mode = DelayMode::Estimated {
+                        initial_s: T::lit(0.1),
+                    };
+                    let mut config = config(mode, suite.imu_hz);
+                    config.gps_noise_from_delay = widen;
+                    let mut nav = DelayCompensatedNav::<T>::new(config).unwrap();
+                    let (mut last, mut early, mut late) = (None, (0.0, 0), (0.0, 0));
+                    for event in &events {
+                        feed(&mut nav, event);
+                        let Some((_, velocity)) = nav.horizon_filter().last_gps_fusion() else {
+                            continue;
+                        };
+                        if last == Some(velocity.t_us) {
+                            continue;
+                        }
+                        last = Some(velocity.t_us);
+                        let s = velocity.innovation_variance.sum().as_f64() / 3.0;
+                        let t_s = velocity.t_us as f64 * 1e-6;
+                        let locked = nav.delay_loop().status() == DelayStatus::Locked;
+                        if !locked && t_s < 20.0 {
+                            early = (early.0 + s, early.1 + 1);
+                        } else if t_s >= 60.0 {
+                            late = (late.0 + s, late.1 + 1);
+                        }
+                    }
+                    let error_ms = (nav.delay_s().as_f64() - 0.2).abs() * 1e3;
+                    (early.0 / early.1 as f64, late.0 / late.1 as f64, error_ms)
+                };
+                let (early_on, late_on, error_on) = run(true);
+                let (early_off, late_off, error_off) = run(false);
+                assert!(
+                    early_on > 1.3 * early_off,
+                    "before lock: {early_on} against {early_off} (m/s)^2"
+                );
+                assert!(
+                    late_on < 1.1 * late_off,
+                    "last 20 s: {late_on} against {late_off} (m/s)^2"
+                );
+                assert!(
+                    error_on < 10.0 && error_off < 10.0,
+                    "{error_on} / {error_off} ms"
+                );
             }
 
             /// The loop's update for a fix is not done in the call that

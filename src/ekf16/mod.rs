@@ -388,6 +388,54 @@ impl<T: Scalar> Ekf16<T> {
         self.core.push_deltas(deltas)
     }
 
+    /// [`push_gps`](Navigator::push_gps) for a fix whose time of validity
+    /// is uncertain by `timing_variance_s2` (s^2): a timing error `d`
+    /// moves the fix by `-v d` in position and `-a d` in velocity (`v` the
+    /// filter's NED velocity, `accel_ned_m_s2` its NED acceleration), so
+    /// the position noise gains `timing_variance_s2 v v'` and the velocity
+    /// noise `timing_variance_s2 a a'` (the cross term between the blocks,
+    /// fused one after the other, is left out). The navigator's delay
+    /// uncertainty, `docs/nav.md`.
+    pub(crate) fn push_gps_with_timing_noise<G: GpsFix<T> + ?Sized>(
+        &mut self,
+        gps: &G,
+        timing_variance_s2: T,
+        accel_ned_m_s2: &Vector3<T>,
+    ) -> Result<GpsOutcome<T>, Error> {
+        self.core.push_gps(
+            gps,
+            |core, block, m| {
+                let lever = &core.config().lever_arm_m;
+                let state = core.nav_state();
+                match block {
+                    GpsBlock::Position => {
+                        let (h, jac) = measurement::gps_position(&state, lever);
+                        let v = state.fixed_rows::<3>(state::VEL);
+                        (
+                            h,
+                            jac,
+                            m.position_noise + v * v.transpose() * timing_variance_s2,
+                        )
+                    }
+                    GpsBlock::Velocity => {
+                        let gyro = core
+                            .last_imu()
+                            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
+                        let (h, jac) = measurement::gps_velocity(&state, &gyro, lever);
+                        let a = accel_ned_m_s2;
+                        (
+                            h,
+                            jac,
+                            m.velocity_noise + a * a.transpose() * timing_variance_s2,
+                        )
+                    }
+                }
+            },
+            None,
+            |_| {},
+        )
+    }
+
     crate::ekf16::nav_core::core_accessors!();
 }
 
@@ -399,27 +447,7 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
     /// Fuses position then velocity with the lever-arm models of
     /// [`measurement`], each block gated on its own.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        self.core.push_gps(
-            gps,
-            |core, block, m| {
-                let lever = &core.config().lever_arm_m;
-                match block {
-                    GpsBlock::Position => {
-                        let (h, jac) = measurement::gps_position(&core.nav_state(), lever);
-                        (h, jac, m.position_noise)
-                    }
-                    GpsBlock::Velocity => {
-                        let gyro = core
-                            .last_imu()
-                            .map_or_else(Vector3::zeros, |s| s.gyro_rad_s);
-                        let (h, jac) = measurement::gps_velocity(&core.nav_state(), &gyro, lever);
-                        (h, jac, m.velocity_noise)
-                    }
-                }
-            },
-            None,
-            |_| {},
-        )
+        self.push_gps_with_timing_noise(gps, T::zero(), &Vector3::zeros())
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
@@ -428,5 +456,83 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
 
     fn estimate(&self) -> Option<Estimate<T>> {
         self.core.estimate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensors::{Gps, GpsPosition};
+    use nalgebra::UnitQuaternion;
+
+    /// The timing noise adds `sigma^2 v_i^2` to each position innovation
+    /// variance and `sigma^2 a_i^2` to each velocity one, and the widened
+    /// filter moves less towards the fix. A diagonal covariance and no lever
+    /// arm keep the position fusion from changing the velocity block, so
+    /// both differences are exact.
+    fn timing_noise_widens_the_fix<T: Scalar>() {
+        let lit = T::lit;
+        let velocity = Vector3::new(lit(4.0), lit(-2.0), lit(0.5));
+        let start = NavState {
+            attitude: UnitQuaternion::identity(),
+            position_ned_m: Vector3::zeros(),
+            velocity_ned_m_s: velocity,
+            accel_bias_m_s2: Vector3::zeros(),
+            gyro_bias_rad_s: Vector3::zeros(),
+        };
+        let p = StateVector::from_element(lit(0.01));
+        let mut plain = Ekf16::from_state(Ekf16Config::default(), 0, &start, &p).unwrap();
+        let mut widened = plain.clone();
+        let offset = Vector3::new(lit(0.3), lit(-0.2), lit(0.1));
+        let fix = Gps {
+            t_us: 0,
+            position: GpsPosition::Ned(offset),
+            velocity_ned_m_s: velocity + offset,
+            horizontal_accuracy_m: None,
+            vertical_accuracy_m: None,
+            speed_accuracy_m_s: None,
+        };
+        let (variance, accel) = (lit(0.01), Vector3::new(lit(3.0), lit(-1.0), lit(0.0)));
+        let records = |outcome| match outcome {
+            Ok(GpsOutcome::Fused { position, velocity }) => (position, velocity),
+            other => panic!("not fused: {other:?}"),
+        };
+        let off = records(plain.push_gps(&fix));
+        let on = records(widened.push_gps_with_timing_noise(&fix, variance, &accel));
+        for i in 0..3 {
+            let tolerance = 1e3 * T::EPS.as_f64();
+            let position = on.0.innovation_variance[i] - off.0.innovation_variance[i];
+            let velocity = on.1.innovation_variance[i] - off.1.innovation_variance[i];
+            assert!(
+                (position - variance * start.velocity_ned_m_s[i].powi(2))
+                    .as_f64()
+                    .abs()
+                    < tolerance
+            );
+            assert!((velocity - variance * accel[i].powi(2)).as_f64().abs() < tolerance);
+        }
+        let moved = |ekf: &Ekf16<T>| {
+            let x = ekf.nav_state().unwrap();
+            (
+                (x.position_ned_m - start.position_ned_m).norm().as_f64(),
+                (x.velocity_ned_m_s - velocity).norm().as_f64(),
+            )
+        };
+        let (p_off, v_off) = moved(&plain);
+        let (p_on, v_on) = moved(&widened);
+        assert!(
+            p_on < p_off && v_on < v_off,
+            "{p_on} {p_off} {v_on} {v_off}"
+        );
+    }
+
+    #[test]
+    fn timing_noise_widens_the_fix_f32() {
+        timing_noise_widens_the_fix::<f32>();
+    }
+
+    #[test]
+    fn timing_noise_widens_the_fix_f64() {
+        timing_noise_widens_the_fix::<f64>();
     }
 }

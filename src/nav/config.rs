@@ -115,6 +115,17 @@ pub struct NavConfig<T: Scalar> {
     /// loop stay at the IMU rate. `0`, or a rate at or above `imu_rate_hz`,
     /// predicts at every IMU sample. Default 100 Hz (`docs/nav.md`).
     pub filter_rate_hz: T,
+    /// Widen each GPS fix's noise by what the delay's uncertainty gives
+    /// (estimated mode only): a fix whose time of validity is off by `d`
+    /// is off by `-v d` in position and `-a d` in velocity, so its position
+    /// noise gains `sigma_tau^2 v v'` and its velocity noise `sigma_tau^2 a
+    /// a'` (`sigma_tau` the delay loop's standard deviation, `v` the horizon's
+    /// velocity, `a` its mean acceleration since the last fix). While the
+    /// loop acquires (`sigma_tau` near 0.3 s) the filter then leans less on
+    /// fixes taken under acceleration, which it would otherwise explain
+    /// with attitude and bias errors that bias the delay loop in turn
+    /// (`docs/nav.md`). Default true; false is the paper's navigator.
+    pub gps_noise_from_delay: bool,
 }
 
 impl<T: Scalar> NavConfig<T> {
@@ -130,6 +141,7 @@ impl<T: Scalar> NavConfig<T> {
         max_horizon_step_ratio: T::ZERO,
         max_time_jump_us: 0,
         filter_rate_hz: T::ZERO,
+        gps_noise_from_delay: false,
     };
 }
 
@@ -151,6 +163,7 @@ impl<T: Scalar> Default for NavConfig<T> {
             max_horizon_step_ratio: T::lit(2.0),
             max_time_jump_us: 1_000_000,
             filter_rate_hz: T::lit(100.0),
+            gps_noise_from_delay: true,
         }
     }
 }

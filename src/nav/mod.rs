@@ -447,6 +447,10 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// A fix's time and velocity waiting for the delay loop, and the IMU
     /// samples it has waited ([`DELAY_UPDATE_MAX_WAIT`]).
     pending_delay_fix: Option<(u64, Vector3<T>, u32)>,
+    /// The horizon's time and velocity after the last fused fix: the next
+    /// fix's prior velocity minus it is the IMU's velocity change between
+    /// them ([`gps_timing_noise`](Self::gps_timing_noise)).
+    last_fix_velocity: Option<(u64, Vector3<T>)>,
     present_accel: Vector3<T>,
     refusals: NavRefusals,
     imu_samples: u64,
@@ -535,6 +539,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         geodetic_fixes: ZeroOption::None,
         last_update: ZeroOption::None,
         pending_delay_fix: None,
+        last_fix_velocity: None,
         present_accel: zeros_const(),
         refusals: NavRefusals::ZERO,
         imu_samples: 0,
@@ -619,6 +624,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.geodetic_fixes = ZeroOption::None;
         self.last_update = ZeroOption::None;
         self.pending_delay_fix = None;
+        self.last_fix_velocity = None;
         self.present_accel = Vector3::zeros();
         self.refusals = NavRefusals::default();
         self.imu_samples = 0;
@@ -779,6 +785,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.mag_clock = StreamClock::default();
         self.last_update = ZeroOption::None;
         self.pending_delay_fix = None;
+        self.last_fix_velocity = None;
         self.valid_delay_updates = 0;
         self.mag_at_horizon = false;
         self.geodetic_fixes = ZeroOption::None;
@@ -862,6 +869,29 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// `tau` in whole microseconds.
     fn delay_us(&self) -> u64 {
         (self.delay_s() * T::lit(1e6)).round().as_f64().max(0.0) as u64
+    }
+
+    /// What the delay's uncertainty adds to the next fix's noise
+    /// ([`NavConfig::gps_noise_from_delay`]): the variance of the delay
+    /// estimate, s^2, and the horizon's mean NED acceleration since the last
+    /// fused fix (its prior velocity minus the velocity after that fix, over
+    /// the time between: the IMU's alone, m/s^2; zero before a first fix).
+    fn gps_timing_noise(&self) -> (T, Vector3<T>) {
+        if !(self.config.gps_noise_from_delay && self.is_estimating()) {
+            return (T::zero(), Vector3::zeros());
+        }
+        let accel = match (
+            self.last_fix_velocity,
+            self.ekf.time_us(),
+            self.ekf.nav_state(),
+        ) {
+            (Some((t0_us, v0)), Some(t_us), Some(x)) if t_us > t0_us => {
+                (x.velocity_ned_m_s - v0) / T::lit((t_us - t0_us) as f64 * 1e-6)
+            }
+            _ => Vector3::zeros(),
+        };
+        let std = self.delay_std_s();
+        (std * std, accel)
     }
 
     fn is_estimating(&self) -> bool {
@@ -1364,7 +1394,13 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         } else {
             None
         };
-        let outcome = self.ekf.push_gps(&fix)?;
+        let (timing_variance_s2, accel) = self.gps_timing_noise();
+        let outcome = self
+            .ekf
+            .push_gps_with_timing_noise(&fix, timing_variance_s2, &accel)?;
+        if let (Some(t_us), Some(x)) = (self.ekf.time_us(), self.ekf.nav_state()) {
+            self.last_fix_velocity = Some((t_us, x.velocity_ned_m_s));
+        }
         let reset = self.ekf.last_gps_reset() != resets_before;
         if self.is_estimating()
             && let (Some(prior), GpsOutcome::Fused { position, velocity }) = (prior, outcome)
