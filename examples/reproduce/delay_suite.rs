@@ -886,6 +886,9 @@ pub struct TraceSummary {
     /// the Cramér-Rao bound from every GPS velocity since the start, a line
     /// for `delay_ramp`), RMS from 20 s, ms.
     pub information_bound_ms: f64,
+    /// Fraction of the navigator's points from 20 s (10 ms spacing) whose
+    /// error is within its reported 1-sigma.
+    pub sigma_coverage: f64,
 }
 
 /// Squared-error sum and count from [`SCORE_FROM_S`] of one estimate.
@@ -1002,6 +1005,7 @@ pub fn write_trace(
     writeln!(out)?;
     let mut rows = 0;
     let mut scores = [Score::default(); 3];
+    let mut covered = (0usize, 0usize);
     for event in &events(&config) {
         feed(&mut nav, event);
         if let Some(c) = &mut comparison {
@@ -1023,6 +1027,10 @@ pub fn write_trace(
         });
         let estimate_s = nav.estimate().and_then(|e| e.delay_s).unwrap_or(f64::NAN);
         scores[0].add(t_s, estimate_s - truth_s);
+        if t_s >= SCORE_FROM_S {
+            covered.0 += usize::from((estimate_s - truth_s).abs() <= nav.delay_std_s());
+            covered.1 += 1;
+        }
         for (score, other) in scores[1..].iter_mut().zip(others.iter().flatten()) {
             score.add(t_s, other - truth_s);
         }
@@ -1071,6 +1079,7 @@ pub fn write_trace(
         run_information_bound_s(name, &config, &events(&config)).map_or(f64::NAN, |s| s * 1e3);
     Ok(Some(TraceSummary {
         information_bound_ms,
+        sigma_coverage: covered.0 as f64 / covered.1.max(1) as f64,
         rows,
         rmse_ms: names
             .into_iter()

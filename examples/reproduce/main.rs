@@ -1981,6 +1981,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "{row} seed {}: information bound (Cramér-Rao from every GPS velocity since the start), RMS from 20 s {:.4} ms",
             args.seed, summary.information_bound_ms
         );
+        eprintln!(
+            "{row} seed {}: navigator error within its reported 1-sigma from 20 s: {:.3} of the time",
+            args.seed, summary.sigma_coverage
+        );
         eprintln!("wrote {} rows to {}", summary.rows, path.display());
         return Ok(());
     }
@@ -2212,6 +2216,18 @@ mod delay_flags {
         // over the noise; one lucky seed may score below it).
         let bound = summary.information_bound_ms;
         assert!(bound > 1.0 && summary.rmse_ms.iter().all(|(_, x)| *x > bound));
+        // The sigma's coverage (10 ms spacing) agrees with the CSV's rows
+        // (1 s spacing) from 20 s: columns sigma_s and error_ms.
+        let (mut inside, mut n) = (0.0, 0.0);
+        for line in lines[1..].iter().map(|l| l.split(',').collect::<Vec<_>>()) {
+            let value = |i: usize| line[i].parse::<f64>().expect("a number");
+            if value(0) >= 20.0 {
+                inside += f64::from(u8::from(value(4).abs() * 1e-3 <= value(3)));
+                n += 1.0;
+            }
+        }
+        assert!((0.0..=1.0).contains(&summary.sigma_coverage));
+        assert!((summary.sigma_coverage - inside / n).abs() < 0.05);
         let options = delay_suite::SuiteOptions {
             seeds: vec![2],
             coverage_seeds: vec![2],
