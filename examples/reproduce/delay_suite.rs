@@ -137,6 +137,10 @@ pub const ROW_NAMES: [&str; 11] = [
 /// run): every row but the last two, which are not one navigator's run.
 pub const TRACE_ROWS: &[&str] = ROW_NAMES.split_at(ROW_NAMES.len() - 2).0;
 
+/// Runs [`write_trace`] can trace beside [`TRACE_ROWS`]: the two scenarios
+/// of `sigma_coverage` (constant 0.2 s, calibrated start).
+pub const EXTRA_TRACES: [&str; 2] = ["calibrated_low", "calibrated_high"];
+
 /// The row named `name` (its static name), `None` when the suite has none.
 pub fn row_name(name: &str) -> Option<&'static str> {
     ROW_NAMES.iter().copied().find(|&n| n == name)
@@ -438,13 +442,16 @@ fn proposed(
     DelayCompensatedNav::new(nav_config).ok()
 }
 
-/// The run and the navigator setup of the `proposed` row `name` on `seed`;
-/// `None` for `sigma_coverage` (two scenarios) and `aekf17_hover` (not the
-/// navigator), and for names the suite does not have.
+/// The run and the navigator setup of the `proposed` row `name` (or one of
+/// [`EXTRA_TRACES`]) on `seed`; `None` for `sigma_coverage` (two scenarios)
+/// and `aekf17_hover` (not the navigator), and for names the suite does not
+/// have.
 fn row_run(name: &str, seed: u64) -> Option<(SimConfig, NavSetup)> {
     let constant = |scenario, delay_s| sim(scenario, seed, DelayProfile::constant(delay_s));
     let high = |profile| sim(Scenario::High, seed, profile);
     Some(match name {
+        "calibrated_low" => (constant(Scenario::Low, 0.2), CALIBRATED),
+        "calibrated_high" => (constant(Scenario::High, 0.2), CALIBRATED),
         "cold_start_low" => (constant(Scenario::Low, 0.2), COLD),
         "cold_start_high" => (constant(Scenario::High, 0.2), COLD),
         "delay_step" => {
@@ -698,10 +705,10 @@ fn sigma_coverage_row(options: &SuiteOptions) -> Row {
     let mut inside = 0usize;
     let mut total = 0usize;
     let mut refused = false;
-    for scenario in [Scenario::Low, Scenario::High] {
+    for run in EXTRA_TRACES {
         let traces: Option<Vec<DelayTrace>> = per_seed(&options.coverage_seeds, |seed| {
-            let config = sim(scenario, seed, DelayProfile::constant(0.2));
-            proposed_trace(&config, CALIBRATED, options.tuning)
+            let (config, setup) = row_run(run, seed)?;
+            proposed_trace(&config, setup, options.tuning)
         })
         .into_iter()
         .collect();

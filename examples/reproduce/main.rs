@@ -155,7 +155,9 @@ struct Args {
     /// Write a per-second trace of the delay suite's row ROW (seed --seed,
     /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
     /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
-    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length).
+    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length);
+    /// `calibrated_low` and `calibrated_high` trace the runs of
+    /// `sigma_coverage`.
     #[arg(long, value_name = "ROW")]
     delay_trace: Option<String>,
     /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
@@ -1965,8 +1967,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             delay_suite::write_trace(row, args.seed, tuning, args.compare_accel, &mut out)?;
         let Some(summary) = summary else {
             return Err(format!(
-                "--delay-trace: no navigator trace for {row:?} (rows: {})",
-                delay_suite::TRACE_ROWS.join(", ")
+                "--delay-trace: no navigator trace for {row:?} (rows: {}, {})",
+                delay_suite::TRACE_ROWS.join(", "),
+                delay_suite::EXTRA_TRACES.join(", ")
             )
             .into());
         };
