@@ -601,7 +601,9 @@ impl<T: Scalar> DelayStatus<T> {
 pub const REACQUIRE_AFTER_FIXES: f64 = 10.0;
 
 /// Time constant of the innovation match that scales the reported sigma, s
-/// (two independent 5 s buffers; the first valid window sets it).
+/// (two independent 5 s buffers). Until it has seen that many updates, the
+/// match is the plain mean of the windows so far (weight `1 / n` for the
+/// `n`-th, `n` counted up to 255): one window alone would set it.
 pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
 
 /// Smallest squared scale of the reported sigma (the scale never exceeds 1:
@@ -715,7 +717,9 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     offset_samples: u64,
     shift_min: usize,
     innovation_ratio: T,
-    innovations_matched: bool,
+    /// Updates in the innovation match so far, up to 255 (its weights: see
+    /// [`SIGMA_MATCH_TIME_S`]).
+    innovations_matched: u8,
     locked: bool,
     following: bool,
     stable_since_us: Option<u64>,
@@ -772,7 +776,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         offset_samples: 0,
         shift_min: 0,
         innovation_ratio: T::ZERO,
-        innovations_matched: false,
+        innovations_matched: 0,
         locked: false,
         following: false,
         stable_since_us: None,
@@ -840,7 +844,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.offset_samples = sizes.offset as u64;
         self.shift_min = sizes.shift_min;
         self.innovation_ratio = T::one();
-        self.innovations_matched = false;
+        self.innovations_matched = 0;
         self.locked = config.fusion.initial_std_s <= config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;
@@ -1137,12 +1141,10 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             n += T::one();
         }
         if n > T::zero() {
-            let alpha = if self.innovations_matched {
-                (dt_s / T::lit(SIGMA_MATCH_TIME_S)).min(T::one())
-            } else {
-                T::one()
-            };
-            self.innovations_matched = true;
+            self.innovations_matched = self.innovations_matched.saturating_add(1);
+            let alpha = (dt_s / T::lit(SIGMA_MATCH_TIME_S))
+                .min(T::one())
+                .max(T::one() / T::lit(f64::from(self.innovations_matched)));
             self.innovation_ratio += alpha * (sum / n - self.innovation_ratio);
         }
     }
@@ -1384,6 +1386,7 @@ fn acquiring_window_variance<T: Scalar>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use approx::assert_relative_eq;
 
     /// The re-acquisition waits for the same number of new fixes at every
     /// rate, and never less than configured.
@@ -1403,6 +1406,60 @@ mod tests {
         assert_eq!(after(5.0, 1.0), 2.0);
         assert_eq!(after(1.0, 1.0), 10.0);
         assert_eq!(after(5.0, 3.0), 3.0);
+    }
+
+    /// The innovation match starts as the plain mean of the windows: a first
+    /// window at 4x its predicted variance and a second at 0 give 2, not the
+    /// first window's 4 (then forgetting at `dt / SIGMA_MATCH_TIME_S`).
+    fn match_starts_as_a_mean<T: Scalar>() {
+        let mut config = DelayLoopConfig::<T>::default();
+        config.fusion.initial_std_s = T::lit(0.01);
+        let mut delay_loop = DefaultDelayLoop::<T>::new(config).unwrap();
+        assert!(delay_loop.locked);
+        let tau = delay_loop.delay_s();
+        let (dt, q) = (T::lit(0.1), T::zero());
+        let r = [T::lit(0.01 * 0.01); AXES];
+        // (z - tau)^2 / (P + R) = 4 with P = R = 1e-4 s^2.
+        let far = [tau + T::lit(0.02 * 2.0_f64.sqrt()); AXES];
+        let valid = [true; AXES];
+        delay_loop.match_innovations(dt, q, &far, &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(4.0),
+            max_relative = T::lit(1e-4)
+        );
+        delay_loop.match_innovations(dt, q, &[tau; AXES], &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(2.0),
+            max_relative = T::lit(1e-4)
+        );
+        // The mean of 4 and 98 zeros after 100 windows; then forgetting at
+        // dt / SIGMA_MATCH_TIME_S = 0.01 per window.
+        for _ in 0..98 {
+            delay_loop.match_innovations(dt, q, &[tau; AXES], &valid, &r);
+        }
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(0.04),
+            max_relative = T::lit(1e-3)
+        );
+        delay_loop.match_innovations(dt, q, &far, &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(0.04 + 0.01 * (4.0 - 0.04)),
+            max_relative = T::lit(1e-3)
+        );
+    }
+
+    #[test]
+    fn match_starts_as_a_mean_f32() {
+        match_starts_as_a_mean::<f32>();
+    }
+
+    #[test]
+    fn match_starts_as_a_mean_f64() {
+        match_starts_as_a_mean::<f64>();
     }
 
     /// An axis far from the best-measured one is left out; one within its
