@@ -602,7 +602,7 @@ macro_rules! nav_tests {
             }
 
             #[test]
-            fn a_full_magnetometer_queue_is_thinned_and_counts() {
+            fn a_full_magnetometer_queue_is_averaged_and_counts() {
                 let mode = DelayMode::Fixed {
                     delay_s: T::lit(0.1),
                 };
@@ -615,17 +615,19 @@ macro_rules! nav_tests {
                     };
                     assert_eq!(nav.push_mag(&m).unwrap(), MagOutcome::Queued);
                 }
-                // Full at MAG_QUEUE: thinned to every other sample (2 µs
-                // apart), then the `extra` ones queued at that spacing.
+                // Full at MAG_QUEUE: neighbours averaged in pairs (2 µs
+                // apart), then every other of the `extra` ones averaged into
+                // the newest queued one, closer than that spacing.
                 let full = delaynav::nav::MAG_QUEUE;
                 assert_eq!(nav.queued_mag_samples(), full / 2 + extra / 2);
-                assert_eq!(nav.refusals().mag_dropped, (full / 2 + extra / 2) as u32);
+                assert_eq!(nav.refusals().mag_averaged, (full / 2 + extra / 2) as u32);
             }
 
             /// A delay longer than the magnetometer queue spans (0.95 s of
-            /// 100 Hz samples in 32) thins the queue: fewer samples reach
+            /// 100 Hz samples in 32) averages the queue: fewer samples reach
             /// the EKF, counted, but it keeps fusing them. The spacing
-            /// doubles at each thinning, 10 -> 20 -> 40 ms: a quarter kept.
+            /// doubles at each averaging, 10 -> 20 -> 40 ms: a quarter as
+            /// many, each the mean of about four.
             #[test]
             fn a_delay_beyond_the_magnetometer_queue_still_fuses() {
                 let mode = DelayMode::Fixed {
@@ -647,10 +649,10 @@ macro_rules! nav_tests {
                     t - last <= 150_000,
                     "last fusion at {last} us, filter at {t} us"
                 );
-                let dropped = nav.refusals().mag_dropped as usize;
+                let averaged = nav.refusals().mag_averaged as usize;
                 assert!(
-                    dropped > mags / 2 && dropped < mags * 7 / 8,
-                    "{dropped} of {mags}"
+                    averaged > mags / 2 && averaged < mags * 7 / 8,
+                    "{averaged} of {mags}"
                 );
             }
 

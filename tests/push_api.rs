@@ -300,7 +300,7 @@ fn nav_sum(c: &NavRefusals) -> u64 {
             mag_invalid,
             mag_time,
             mag_ahead,
-            mag_dropped,
+            mag_averaged,
             horizon_refused,
             delay_loop_refused,
         }

@@ -332,7 +332,7 @@ impl HealthSummary {
         let n = h.refusals;
         let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead,
             gps_invalid, gps_time, gps_accuracy, gps_ahead, gps_mixed_frames, mag_invalid,
-            mag_time, mag_ahead, mag_dropped, horizon_refused, delay_loop_refused);
+            mag_time, mag_ahead, mag_averaged, horizon_refused, delay_loop_refused);
         summary.refused = non_zero(own)
             .into_iter()
             .map(|(k, v)| (format!("nav.{k}"), v))

@@ -64,6 +64,17 @@ impl<E: Copy, const N: usize> Ring<E, N> {
         Some(oldest)
     }
 
+    /// Replaces the newest value; `false` (nothing stored) when empty.
+    #[inline]
+    pub(crate) fn replace_newest(&mut self, value: E) -> bool {
+        if self.len == 0 {
+            return false;
+        }
+        let newest = self.back(1);
+        self.data[newest] = value;
+        true
+    }
+
     /// The oldest stored value.
     #[inline]
     pub(crate) fn oldest(&self) -> Option<E> {

@@ -65,12 +65,17 @@
 //! ([`MagOutcome::Queued`]) and are fused by the horizon EKF as soon as its
 //! time reaches theirs (at the first filter step at or after them; the
 //! fusion runs at the IMU sample after that step, the EKF unmoved, so that
-//! no call does a prediction and a fusion together). A full queue keeps every
-//! other waiting sample (it then spans the same time at half the rate), and
-//! later samples are queued at that spacing until it drains to a quarter:
-//! the magnetometer is then fused at half its rate (a quarter at twice the
-//! span...) instead of not at all. The samples left out are counted in
-//! [`NavRefusals::mag_dropped`] (their push still answers `Queued`).
+//! no call does a prediction and a fusion together). A full queue averages
+//! each pair of neighbours into one sample (the field's mean, at their mean
+//! time: it then spans the same time at half the rate), and later samples
+//! closer than that spacing to the newest queued one are averaged into it,
+//! until the queue drains to a quarter: the magnetometer is then fused at
+//! half its rate (a quarter at twice the span...), every sample in it,
+//! instead of not at all. Each sample averaged into another is counted in
+//! [`NavRefusals::mag_averaged`] (its push answers `Queued`). The EKF's
+//! magnetometer noise is not divided by the samples averaged: the
+//! configured noise also stands for disturbances, which averaging does not
+//! remove.
 //!
 //! # Forward reckoning in `O(1)`
 //! The output predictor of PX4's EKF2, made exact to first order without
@@ -241,9 +246,9 @@ pub struct NavRefusals {
     pub mag_time: u32,
     /// Magnetometer samples stamped more than `max_time_jump_us` after the newest IMU sample.
     pub mag_ahead: u32,
-    /// Magnetometer samples dropped from a full queue (every other waiting
-    /// sample when it fills).
-    pub mag_dropped: u32,
+    /// Magnetometer samples averaged into a neighbour because the queue was
+    /// full (module docs): fused, at a lower rate.
+    pub mag_averaged: u32,
     /// Horizon steps the EKF refused (e.g. a step longer than its maximum).
     pub horizon_refused: u32,
     /// Samples the delay loop refused.
@@ -269,18 +274,62 @@ pub struct NavWork {
     pub correlation_multiply_adds: u64,
 }
 
-/// Keeps every other value of `ring` (the newest kept), oldest first;
-/// returns how many were dropped.
-fn thin_out<E: Copy, const N: usize>(ring: &mut Ring<E, N>) -> u32 {
-    let len = ring.len();
-    let mut dropped = 0;
-    for k in 0..len {
-        match ring.pop_oldest() {
-            Some(v) if (len - k) % 2 == 1 => ring.push(v),
-            _ => dropped += 1,
+/// A magnetometer sample waiting for the horizon: the mean field of
+/// `samples` raw samples at their mean time (one sample until a full queue
+/// averages neighbours: module docs).
+#[derive(Debug, Clone, Copy)]
+struct QueuedMag<T: Scalar> {
+    t_us: u64,
+    field_body: Vector3<T>,
+    samples: u16,
+}
+
+impl<T: Scalar> QueuedMag<T> {
+    fn new(m: Mag<T>) -> Self {
+        Self {
+            t_us: m.t_us,
+            field_body: m.field_body,
+            samples: 1,
         }
     }
-    dropped
+
+    /// The mean of `self` and a `newer` one, each weighed by its samples.
+    fn averaged_with(self, newer: Self) -> Self {
+        let n = u32::from(self.samples) + u32::from(newer.samples);
+        let dt_us = newer.t_us.saturating_sub(self.t_us);
+        let share = T::from_f32_exact(f32::from(newer.samples)) / T::from_f32_exact(n as f32);
+        Self {
+            t_us: self.t_us + dt_us * u64::from(newer.samples) / u64::from(n),
+            field_body: self.field_body + (newer.field_body - self.field_body) * share,
+            samples: u16::try_from(n).unwrap_or(u16::MAX),
+        }
+    }
+}
+
+/// Averages the waiting samples of a full queue in pairs, oldest first (the
+/// oldest alone when their number is odd, so that the newest is in a pair);
+/// returns how many samples were averaged into another.
+fn average_pairs<T: Scalar, const N: usize>(ring: &mut Ring<QueuedMag<T>, N>) -> u32 {
+    let len = ring.len();
+    let mut averaged = 0;
+    let mut older = None;
+    for k in 0..len {
+        let Some(m) = ring.pop_oldest() else {
+            break;
+        };
+        if (len - k).is_multiple_of(2) {
+            older = Some(m);
+            continue;
+        }
+        ring.push(match older.take() {
+            Some(o) => {
+                averaged += 1;
+                o.averaged_with(m)
+            }
+            None => m,
+        });
+    }
+    averaged
 }
 
 impl NavRefusals {
@@ -299,7 +348,7 @@ impl NavRefusals {
         mag_invalid: 0,
         mag_time: 0,
         mag_ahead: 0,
-        mag_dropped: 0,
+        mag_averaged: 0,
         horizon_refused: 0,
         delay_loop_refused: 0,
     };
@@ -426,10 +475,13 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     mags_due: bool,
     /// The horizon EKF's prediction period, µs (0: every IMU sample).
     filter_period_us: u64,
-    mags: Ring<Mag<T>, MAG_QUEUE>,
+    mags: Ring<QueuedMag<T>, MAG_QUEUE>,
     /// Least time between queued magnetometer samples, µs: 0 until the
-    /// queue fills, then the spacing of the thinned queue (module docs).
+    /// queue fills, then the spacing of the averaged queue (module docs).
     mag_spacing_us: u64,
+    /// Time of the first raw sample in the newest queued one, µs: samples
+    /// closer to it than `mag_spacing_us` are averaged into that one.
+    mag_newest_start_us: u64,
     last_imu: Option<Imu<T>>,
     imu_clock: StreamClock,
     gps_clock: StreamClock,
@@ -523,11 +575,13 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         deltas: DeltaAccumulator::new(),
         mags_due: false,
         filter_period_us: 0,
-        mags: Ring::new(Mag {
+        mags: Ring::new(QueuedMag {
             t_us: 0,
             field_body: zeros_const(),
+            samples: 0,
         }),
         mag_spacing_us: 0,
+        mag_newest_start_us: 0,
         last_imu: None,
         imu_clock: StreamClock::NEW,
         gps_clock: StreamClock::NEW,
@@ -1110,7 +1164,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.mags.pop_oldest();
             self.mag_at_horizon = true;
             // Refusals (gate, time) are counted by the EKF.
-            let _ = self.ekf.push_mag(&m);
+            let _ = self.ekf.push_mag(&Mag {
+                t_us: m.t_us,
+                field_body: m.field_body,
+            });
         }
     }
 
@@ -1450,20 +1507,24 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         if self.mags.len() <= MAG_QUEUE / 4 {
             self.mag_spacing_us = 0;
         }
-        let newest = self.mags.get(0).map(|n| n.t_us);
-        if newest.is_some_and(|n| m.t_us < n.saturating_add(self.mag_spacing_us)) {
-            bump(&mut self.refusals.mag_dropped);
+        let m = QueuedMag::new(m);
+        if let Some(newest) = self.mags.get(0)
+            && m.t_us < self.mag_newest_start_us.saturating_add(self.mag_spacing_us)
+        {
+            self.mags.replace_newest(newest.averaged_with(m));
+            bump(&mut self.refusals.mag_averaged);
             return Ok(MagOutcome::Queued);
         }
         if self.mags.len() == MAG_QUEUE {
-            let dropped = thin_out(&mut self.mags);
-            self.refusals.mag_dropped = self.refusals.mag_dropped.saturating_add(dropped);
+            let averaged = average_pairs(&mut self.mags);
+            self.refusals.mag_averaged = self.refusals.mag_averaged.saturating_add(averaged);
             if let (Some(oldest), Some(newest)) = (self.mags.oldest(), self.mags.get(0)) {
                 let gaps = (self.mags.len() as u64).saturating_sub(1).max(1);
                 self.mag_spacing_us = (newest.t_us - oldest.t_us) / gaps;
             }
         }
         self.mags.push(m);
+        self.mag_newest_start_us = m.t_us;
         Ok(MagOutcome::Queued)
     }
 
@@ -1485,5 +1546,56 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             gyro_bias_rad_s: x.fixed_rows::<3>(GYRO_BIAS).into_owned(),
             ..horizon
         }))
+    }
+}
+
+#[cfg(test)]
+mod queue_tests {
+    use super::*;
+
+    fn sample<T: Scalar>(t_us: u64, x: f64) -> QueuedMag<T> {
+        QueuedMag::new(Mag {
+            t_us,
+            field_body: Vector3::new(T::lit(x), T::one(), T::zero()),
+        })
+    }
+
+    /// A full queue of 5 samples (odd: the oldest stays alone) becomes 3,
+    /// each the mean of its pair at the pair's mean time; a pair and a
+    /// single sample average with weights 2 and 1.
+    fn pairs_are_averaged<T: Scalar>() {
+        let mut ring = Ring::<QueuedMag<T>, 5>::new(sample(0, 0.0));
+        for k in 0..5u32 {
+            ring.push(sample(100 * u64::from(k), f64::from(k)));
+        }
+        assert_eq!(average_pairs(&mut ring), 2);
+        let kept: Vec<_> = (0..ring.len())
+            .rev()
+            .filter_map(|age| ring.get(age))
+            .collect();
+        assert_eq!(
+            kept.iter().map(|m| m.t_us).collect::<Vec<_>>(),
+            [0, 150, 350]
+        );
+        assert_eq!(
+            kept.iter().map(|m| m.samples).collect::<Vec<_>>(),
+            [1, 2, 2]
+        );
+        let x: Vec<f64> = kept.iter().map(|m| m.field_body.x.as_f64()).collect();
+        assert_eq!(x, [0.0, 1.5, 3.5]);
+        let three = kept[2].averaged_with(sample(500, 6.5));
+        assert_eq!((three.t_us, three.samples), (400, 3));
+        assert_eq!(three.field_body.x.as_f64(), 4.5);
+        assert_eq!(three.field_body.y.as_f64(), 1.0);
+    }
+
+    #[test]
+    fn pairs_are_averaged_f32() {
+        pairs_are_averaged::<f32>();
+    }
+
+    #[test]
+    fn pairs_are_averaged_f64() {
+        pairs_are_averaged::<f64>();
     }
 }
