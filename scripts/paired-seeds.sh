@@ -7,7 +7,8 @@
 # their own target directories under OUT_DIR), runs
 # `reproduce --delay DELAY_S --seed S --seeds 1` for seeds 1..SEEDS (20) with
 # each build, and prints, per scenario, estimator and figure, the mean of each
-# build and the mean paired difference (NEW - BASE) with its 95 % interval.
+# build and the mean paired difference (NEW - BASE) with its 95 % interval
+# (1.96 standard errors of the mean difference).
 # Used for docs/nav.md, "Averaging, not dropping":
 #   scripts/paired-seeds.sh c9dd280 <the averaging commit> 0.6
 set -euo pipefail
