@@ -64,15 +64,13 @@ impl<E: Copy, const N: usize> Ring<E, N> {
         Some(oldest)
     }
 
-    /// Replaces the newest value; `false` (nothing stored) when empty.
+    /// Replaces the newest value (nothing when empty).
     #[inline]
-    pub(crate) fn replace_newest(&mut self, value: E) -> bool {
-        if self.len == 0 {
-            return false;
+    pub(crate) fn replace_newest(&mut self, value: E) {
+        if self.len > 0 {
+            let newest = self.back(1);
+            self.data[newest] = value;
         }
-        let newest = self.back(1);
-        self.data[newest] = value;
-        true
     }
 
     /// The oldest stored value.

@@ -296,16 +296,14 @@ impl<T: Scalar> QueuedMag<T> {
     /// The mean of `self` and a `newer` one, each weighed by its samples.
     fn averaged_with(self, newer: Self) -> Self {
         // n >= 1 even for blank entries (never averaged), so that no
-        // division can fail or give NaN; saturating times: no panic path.
+        // division can fail or give NaN. The offset is at most `dt_us` (in
+        // u128 the product cannot overflow), so the sum stays within u64.
         let n = (u32::from(self.samples) + u32::from(newer.samples)).max(1);
         let dt_us = newer.t_us.saturating_sub(self.t_us);
         let share = T::from_f32_exact(f32::from(newer.samples)) / T::from_f32_exact(n as f32);
-        let offset_us = dt_us.saturating_mul(u64::from(newer.samples)) / u64::from(n);
+        let offset_us = u128::from(dt_us) * u128::from(newer.samples) / u128::from(n);
         Self {
-            t_us: self
-                .t_us
-                .saturating_add(offset_us)
-                .min(newer.t_us.max(self.t_us)),
+            t_us: self.t_us.saturating_add(offset_us as u64),
             field_body: self.field_body + (newer.field_body - self.field_body) * share,
             samples: u16::try_from(n).unwrap_or(u16::MAX),
         }
