@@ -163,6 +163,34 @@ macro_rules! status_tests {
                 }
             }
 
+            /// `set_delay` with a calibration-sized sigma locks: the loop's
+            /// next update says `Locked` and holds the value through a hover;
+            /// a vague one does not (the hover leaves it waiting for motion).
+            /// A value outside the range is refused and changes nothing.
+            #[test]
+            fn set_delay_locks_only_when_certain() {
+                let mut scenario = Scenario::simulator();
+                scenario.duration_s = 15.0;
+                let base = config(0.1, (0.0, 1.0));
+                assert!(base.fusion.initial_std_s > base.lock_std_s);
+                for (std_s, want) in [(base.lock_std_s / 2.0, DelayStatus::Locked), (base.lock_std_s * 4.0, DelayStatus::WaitingForMotion)] {
+                    let mut delay_loop = DefaultDelayLoop::<T>::new(base).unwrap();
+                    delay_loop.set_delay(0.25, std_s).unwrap();
+                    assert!(delay_loop.set_delay(2.0, std_s).is_err());
+                    assert_eq!(delay_loop.delay_s(), 0.25);
+                    let mut statuses = Vec::new();
+                    for event in scenario.events(&Motion::hover(), &|_| 0.25) {
+                        match event {
+                            Event::Imu(t, a) => delay_loop.push_imu(t, v3(a)).unwrap(),
+                            Event::Gps(t, v) => statuses.extend(delay_loop.push_gps(t, v3(v)).unwrap().map(|u| u.status)),
+                        }
+                    }
+                    assert!(!statuses.is_empty());
+                    assert!(statuses.iter().all(|s| *s == want), "std {std_s}: {statuses:?}");
+                    assert_eq!(delay_loop.delay_s(), 0.25);
+                }
+            }
+
             /// A step of 0.15 s is re-acquired: within 10 ms of the new delay
             /// within 8 s, then locked again.
             #[test]
@@ -185,16 +213,6 @@ macro_rules! status_tests {
 
 status_tests!(f64_loop, f64);
 status_tests!(f32_loop, f32);
-
-/// `set_delay` with a calibration-sized sigma locks; a vague one acquires.
-#[test]
-fn set_delay_locks_only_when_certain() {
-    let mut delay_loop = DefaultDelayLoop::<f64>::new(DelayLoopConfig::default()).unwrap();
-    delay_loop.set_delay(0.25, 0.02).unwrap();
-    assert!(delay_loop.set_delay(2.0, 0.02).is_err());
-    let config = DelayLoopConfig::<f64>::default();
-    assert!(config.fusion.initial_std_s > config.lock_std_s);
-}
 
 /// A range wider than the capacity is refused, naming the field.
 #[test]

@@ -6,32 +6,19 @@
 mod common;
 
 use common::Motion;
-use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, State, Suite, feed, fly};
+use common::flight::{Flight, FlightEvent, State, Suite, feed, fly, nav_config as config};
 use delaynav::nav::{
     AlignmentState, DelayCompensatedNav, DelayMode, NavConfig, ResetCause, ResetRecord,
     WhiteningFilter,
 };
 use delaynav::{
-    DelayStatus, Ekf16Config, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome,
-    Navigator, Scalar,
+    DelayStatus, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator,
+    Scalar,
 };
 use nalgebra::Vector3;
 
 fn f64s<T: Scalar>(v: &Vector3<T>) -> Vector3<f64> {
     v.map(|x| x.as_f64())
-}
-
-fn config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> NavConfig<T> {
-    NavConfig {
-        ekf: Ekf16Config {
-            mag_inclination_rad: T::lit(INCLINATION),
-            mag_declination_rad: T::lit(DECLINATION),
-            ..Ekf16Config::default()
-        },
-        mode,
-        imu_rate_hz: T::lit(imu_hz),
-        ..NavConfig::default()
-    }
 }
 
 /// Attitude error, rad (angle of q_est^-1 q_true).

@@ -269,6 +269,17 @@ macro_rules! core_accessors {
             self.core.last_mag_fusion()
         }
 
+        /// Time of the newest GPS fix with a block (position or velocity)
+        /// fused, µs: rejected fixes after it leave it as it is.
+        pub fn last_gps_fused_us(&self) -> Option<u64> {
+            self.core.last_gps_fused_us()
+        }
+
+        /// Time of the newest fused magnetometer sample, µs.
+        pub fn last_mag_fused_us(&self) -> Option<u64> {
+            self.core.last_mag_fused_us()
+        }
+
         /// Counters of refused and gated-out samples.
         pub fn refusals(&self) -> RefusalCounters {
             self.core.refusals()
@@ -335,6 +346,12 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// The last magnetometer fusion record, if `mag_recorded` (as `last_gps`).
     last_mag: FusionRecord<T, 3>,
     mag_recorded: bool,
+    /// Time of the newest GPS fix with a block fused, µs: what the
+    /// validity of velocity and position rests on (a rejected fix after it
+    /// does not make it older).
+    gps_fused_us: Option<u64>,
+    /// Time of the newest fused magnetometer sample, µs (as `gps_fused_us`).
+    mag_fused_us: Option<u64>,
     /// Per GPS block (position, velocity): time of the last fix that
     /// initialized the filter, had the block fused or reset it (or of the
     /// first rejected fix of a filter started from a state).
@@ -395,6 +412,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gps_recorded: false,
             last_mag: zero_record(),
             mag_recorded: false,
+            gps_fused_us: None,
+            mag_fused_us: None,
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
             last_gps_reset: ZeroOption::None,
@@ -473,6 +492,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.frame = config.origin.map(LocalFrame::new);
         self.gps_recorded = false;
         self.mag_recorded = false;
+        self.gps_fused_us = None;
+        self.mag_fused_us = None;
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.last_gps_reset = ZeroOption::None;
@@ -597,6 +618,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// The last magnetometer fusion record.
     pub(crate) fn last_mag_fusion(&self) -> Option<FusionRecord<T, 3>> {
         self.mag_recorded.then_some(self.last_mag)
+    }
+
+    /// Time of the newest fix with a GPS block fused, µs.
+    pub(crate) fn last_gps_fused_us(&self) -> Option<u64> {
+        self.gps_fused_us
+    }
+
+    /// Time of the newest fused magnetometer sample, µs.
+    pub(crate) fn last_mag_fused_us(&self) -> Option<u64> {
+        self.mag_fused_us
     }
 
     /// Value and variance of extra state `index` (`16..N`): the initial
@@ -1165,6 +1196,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !velocity.fused {
             bump(&mut self.refusals.gps_velocity_rejected);
         }
+        if position.fused || velocity.fused {
+            self.gps_fused_us = Some(position.t_us);
+        }
         self.last_gps = (position, velocity);
         self.gps_recorded = true;
     }
@@ -1236,6 +1270,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 record.test_ratio = T::lit(f64::INFINITY);
                 bump(&mut self.refusals.mag_disturbed);
             }
+        }
+        if record.fused {
+            self.mag_fused_us = Some(record.t_us);
         }
         self.last_mag = record;
         self.mag_recorded = true;

@@ -878,17 +878,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             .max(T::zero())
             .sqrt();
         let velocity_std = std(VEL).max(std(VEL + 1)).max(std(VEL + 2));
-        let gps_fused = self
-            .ekf
-            .last_gps_fusion()
-            .filter(|(pos, vel)| pos.fused || vel.fused)
-            .map(|(pos, _)| pos.t_us);
-        let mag_fused = self
-            .ekf
-            .last_mag_fusion()
-            .filter(|m| m.fused)
-            .map(|m| m.t_us);
-        let gps_recent = recent(gps_fused, GPS_STALE_US);
+        let gps_recent = recent(self.ekf.last_gps_fused_us(), GPS_STALE_US);
+        let mag_fused = self.ekf.last_mag_fused_us();
         let estimated = self.is_estimating();
         Health {
             t_us: self.imu_clock.last(),

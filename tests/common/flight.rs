@@ -3,12 +3,28 @@
 
 use super::{Lcg, Motion};
 use delaynav::geo::{magnetic_field_ned, quaternion_from_euler, rotation_matrix};
-use delaynav::{Gps, GpsPosition, Imu, Mag};
+use delaynav::nav::{DelayMode, NavConfig};
+use delaynav::{Ekf16Config, Gps, GpsPosition, Imu, Mag, Scalar};
 use nalgebra::{UnitQuaternion, Vector3};
 
 pub const G: f64 = 9.806_65;
 pub const INCLINATION: f64 = 1.1;
 pub const DECLINATION: f64 = 0.2;
+
+/// The navigator's default configuration for these flights' magnetic field
+/// at `imu_hz`.
+pub fn nav_config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> NavConfig<T> {
+    NavConfig {
+        ekf: Ekf16Config {
+            mag_inclination_rad: T::lit(INCLINATION),
+            mag_declination_rad: T::lit(DECLINATION),
+            ..Ekf16Config::default()
+        },
+        mode,
+        imu_rate_hz: T::lit(imu_hz),
+        ..NavConfig::default()
+    }
+}
 
 /// At rest and level until `start_s`, then the motion fades in over `ramp_s`
 /// (quintic smoothstep, continuous to the second derivative).
