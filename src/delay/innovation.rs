@@ -26,7 +26,8 @@
 //! a scalar weighted least squares over a window, with `S` the innovation
 //! covariance. What is left out: the per-axis 2x2 block (position, velocity)
 //! stands for the 16-state filter, so the delay error the filter puts into
-//! its attitude and biases is not tracked (measured in `docs/delay.md`).
+//! its attitude and biases is not tracked (measured in
+//! `docs/journal/2026-11-25-delay-innovation-observation.md`).
 //!
 //! Cost: per fix about 100 flops per axis; nothing per IMU sample.
 

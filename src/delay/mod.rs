@@ -146,7 +146,8 @@ impl<T: Scalar> SensorDelays<T> {
 /// the fix-interval correlation ([`DelayLoopConfig::matched_fix_intervals`]),
 /// Hz. Measured: it takes the suite's `gps_1hz` from 84 to 23 ms, while at
 /// 4.98 Hz (the log171 flight) a 0.2 s delay step ends 15 ms short of its
-/// target with it and 7 ms short on the grid path (docs/delay.md).
+/// target with it and 7 ms short on the grid path
+/// (docs/journal/2026-11-24-delay-tracking-and-low-rates.md).
 pub const MATCHED_BELOW_HZ: f64 = 3.0;
 
 /// Configuration of the [`DelayLoop`].
@@ -244,7 +245,8 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// GPS innovations ([`innovation`] module), s: every this long its
     /// least-squares estimate is fused into the gain fusion. 0 disables
     /// (the default: the delay suite's figures for 4-6 s windows are in
-    /// `docs/delay.md`, section 8; 5 s is the measured setting).
+    /// `docs/journal/2026-11-25-delay-robust-acquisition.md`; 5 s is the
+    /// measured setting, `docs/delay.md`, section 8).
     pub innovation_window_s: T,
     /// Factor on that estimate's variance (`1 / info`) when it is fused:
     /// the filter's absorption of the delay error into its attitude and
@@ -259,12 +261,14 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// [`ACQUIRE_AGREEMENT_SIGMA`] standard deviations of their difference)
     /// and with its variance times `innovation_acquire_noise_scale` too.
     /// Off: only once locked (refinement and step detection). Measured on
-    /// the delay suite (`docs/delay.md`): `cold_start_low` 25 -> 9-10 ms at
-    /// 4-6 s windows, `cold_start_high` 3.8-4.3 ms (4.15 ms off).
+    /// the delay suite (`docs/journal/2026-11-25-delay-robust-acquisition.md`):
+    /// `cold_start_low` 25 -> 9-10 ms at 4-6 s windows, `cold_start_high`
+    /// 3.8-4.3 ms (4.15 ms off).
     pub innovation_before_lock: bool,
     /// Before lock, factor on the innovation windows' variance on top of
     /// `innovation_noise_scale`: before the first strong manoeuvre the
-    /// windows scatter more than their variance says (`docs/delay.md`).
+    /// windows scatter more than their variance says
+    /// (`docs/journal/2026-11-25-delay-robust-acquisition.md`).
     pub innovation_acquire_noise_scale: T,
     /// Gain fusion, delay range (= the shift window, either sign) and
     /// initial delay.
@@ -617,7 +621,7 @@ pub const MAX_APPLIED_DELAY_ERROR_S: f64 = 0.02;
 /// Before lock, an innovation window is fused only within this many
 /// standard deviations (scaled as fused) of the previous window: 3 gave
 /// the same delay suite, 1.5 the same but for one row, 1 was worse
-/// (`docs/delay.md`).
+/// (`docs/journal/2026-11-25-delay-robust-acquisition.md`).
 pub const ACQUIRE_AGREEMENT_SIGMA: f64 = 2.0;
 
 /// Largest squared scale of the reported sigma with the innovation

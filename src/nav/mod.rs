@@ -184,7 +184,7 @@ pub const MAG_QUEUE: usize = 32;
 /// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
 /// spans the largest delay (14 samples at 1 kHz and 0.5 s, 27 at the default
 /// 1 s range; 32 entries, 35 samples apart, cost the `high` scenario's roll
-/// 3 %: docs/PERFORMANCE.md).
+/// 3 %: docs/journal/2026-11-25-ram-history-and-capacities.md).
 pub const OUTPUT_ENTRIES: usize = 40;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
