@@ -562,25 +562,73 @@ mod tests {
         matches_the_dense_joseph_form::<f32, 17>((0.0, 0.0));
     }
 
+    /// The condition number of `S = H P H^T + R` of a case (in f64).
+    fn innovation_condition<const N: usize>(case: &Case<N>) -> f64 {
+        let s = case.h * case.p * case.h.transpose() + case.r;
+        let eigenvalues = s.symmetric_eigenvalues();
+        eigenvalues.max() / eigenvalues.min()
+    }
+
+    /// The check of [`matches_the_dense_joseph_form_on_any_seed`] on the
+    /// case of `seed` (variances spanning four orders of magnitude): f64
+    /// against the dense form in f64 (the reference); f32 within 5x of the
+    /// dense form's own f32 error, or under a floor: the larger of 1e-3 (x)
+    /// / 3e-5 (P) and `2 eps_f32 cond(S)`, the forward error of the gain's
+    /// solve that any f32 algorithm may make. The dense form in f32 is at
+    /// times far better than that bound, and the ratio alone then failed:
+    /// seeds 8833327133248184445 and 17609281231349481892 (x 2.5e-3 and
+    /// 1.5e-3, 10.9x and 5.1x the dense form's; cond(S) 4.2e4 and 3.1e4,
+    /// floor 1.0e-2 and 7.5e-3) and 5410732532479343997 (P 3.1e-5; cond(S)
+    /// 7.3e3). Scanned over 2,000,000 random seeds (2026-11-28): no failure,
+    /// the worst f32 errors 0.91x (x) and 0.30x (P) of their bounds, the
+    /// worst f64 errors 4.0e-12 (x) and 2.2e-13 (P).
+    fn check_seed(seed: u64) -> Result<(), String> {
+        let case = random_case::<16>(&mut Rng(seed), 1.0);
+        let [(x, p), _] = errors::<f64, 16>(&case);
+        if !(x < 1e-11 && p < 1e-12) {
+            return Err(format!("seed {seed}, f64: {x:e} {p:e}"));
+        }
+        let [(x, p), (x_dense, p_dense)] = errors::<f32, 16>(&case);
+        let floor = 2.0 * f64::from(f32::EPSILON) * innovation_condition(&case);
+        if x < 1e-3f64.max(5.0 * x_dense).max(floor) && p < 3e-5f64.max(5.0 * p_dense).max(floor) {
+            Ok(())
+        } else {
+            Err(format!(
+                "seed {seed}, f32: {x:e} {p:e}, the dense form {x_dense:e} {p_dense:e}, \
+                 conditioning floor {floor:e}"
+            ))
+        }
+    }
+
     proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
-        /// Variances spanning four orders of magnitude, any seed: f64 against
-        /// the dense form in f64 (the reference), f32 within 5x of the dense
-        /// form's own f32 error or under a floor. Scanned over seeds 1..10^6
-        /// (2026-11-25): the worst f64 errors 2.6e-12 (x) and 1.8e-13 (P); in
-        /// f32 the largest ratio to the dense form above the floor was 4.8x
-        /// (P, seed 821,375: both forms lose to the conditioning of `S`).
-        /// Absolute f32 bounds alone (1e-3, 1e-5) failed 1 case in ~10^4.
+        // A fixed generator seed and no failure file: the same 256 cases on
+        // every run, and a failure never writes into the checkout.
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 256,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x6a09_e667_f3bc_c908),
+            failure_persistence: None,
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+        /// [`check_seed`] on 256 seeds drawn from a fixed generator seed.
         #[test]
         fn matches_the_dense_joseph_form_on_any_seed(seed in 1u64..) {
+            check_seed(seed).map_err(proptest::test_runner::TestCaseError::fail)?;
+        }
+    }
+
+    /// The seeds that failed [`check_seed`]'s bounds before its conditioning
+    /// floor (one random run in about a thousand): ill-conditioned `S`, and
+    /// within the floor.
+    #[test]
+    fn matches_the_dense_joseph_form_on_the_ill_conditioned_seeds() {
+        for seed in [
+            8_833_327_133_248_184_445,
+            17_609_281_231_349_481_892,
+            5_410_732_532_479_343_997,
+        ] {
             let case = random_case::<16>(&mut Rng(seed), 1.0);
-            let [(x, p), _] = errors::<f64, 16>(&case);
-            proptest::prop_assert!(x < 1e-11 && p < 1e-12, "f64: {x:e} {p:e}");
-            let [(x, p), (x_dense, p_dense)] = errors::<f32, 16>(&case);
-            proptest::prop_assert!(
-                x < 1e-3f64.max(5.0 * x_dense) && p < 3e-5f64.max(5.0 * p_dense),
-                "f32: {x:e} {p:e}, the dense form {x_dense:e} {p_dense:e}"
-            );
+            assert!(innovation_condition(&case) > 5e3, "seed {seed}");
+            assert_eq!(check_seed(seed), Ok(()));
         }
     }
 

@@ -3,7 +3,7 @@
 //! acceleration rotated with the onboard attitude, finds the 0.27-0.3 s the
 //! crude check measured, and about 0.58 s with 0.3 s added to the GPS times;
 //! the offline calibration (IMU-only attitude) finds the rough delay.
-//! Skipped, with a message, when the log is absent.
+//! Skipped, with a message, when the log is absent; a failure under `CI=true`.
 
 mod common;
 
@@ -16,17 +16,11 @@ use nalgebra::Vector3;
 
 const FLIGHT: (f64, f64) = (75.0, 225.0);
 
+/// The log's directory (its `imu.csv` checked), or `None` when it is absent
+/// (a failure under `CI=true`, see `common::shared_data`).
 fn log_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/ardupilot-log171");
-    if dir.join("imu.csv").exists() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "SKIPPED: real log not found at {} (see docs/delay.md)",
-            dir.display()
-        );
-        None
-    }
+    common::shared_data::shared("ardupilot-log171/imu.csv")
+        .and_then(|csv| csv.parent().map(PathBuf::from))
 }
 
 /// Rows of a CSV file as numbers, header skipped.

@@ -2,6 +2,8 @@
 //! and on small CSV files of every layout written by the tests themselves.
 #![cfg(feature = "replay")]
 
+mod common;
+
 use approx::assert_relative_eq;
 use delaynav::geo::{euler_from_quaternion, quaternion_from_euler, roll_pitch_from_accel};
 use delaynav::replay::{
@@ -11,23 +13,10 @@ use delaynav::replay::{
 use delaynav::{GpsPosition, Scalar};
 use std::path::{Path, PathBuf};
 
-const LOG171: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/ardupilot-log171"
-);
-
-/// The real log's directory, or `None` (with a note) when it is absent on a
-/// user's machine. In CI (`CI=true`) its absence fails the test.
+/// The real log's directory, or `None` when it is absent (a failure under
+/// `CI=true`, see `common::shared_data`).
 fn log171() -> Option<PathBuf> {
-    let dir = PathBuf::from(LOG171);
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("CI=true but {LOG171} is missing: the real-log tests cannot run");
-    }
-    println!("skipped: ../shared/data/ardupilot-log171 not found");
-    None
+    common::shared_data::shared("ardupilot-log171")
 }
 
 /// The rows of a CSV file as text cells, read independently of the crate's

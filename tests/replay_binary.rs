@@ -3,6 +3,8 @@
 //! pyulog's counts, and on bytes crafted to be bad.
 #![cfg(feature = "replay")]
 
+mod common;
+
 use delaynav::replay::dataflash::{DataFlashFault, DataFlashLog};
 use delaynav::replay::{
     ArduPilotImu, LogFiles, LogFormat, LogReader, ReaderOptions, ReferenceReader, ReplayError,
@@ -11,21 +13,7 @@ use delaynav::replay::{
 use delaynav::{GpsPosition, Scalar};
 use std::path::{Path, PathBuf};
 
-const SHARED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
-
-/// A shared test file, or `None` (with a note) when it is absent on a user's
-/// machine. In CI (`CI=true`) its absence fails the test.
-fn shared(relative: &str) -> Option<PathBuf> {
-    let path = Path::new(SHARED).join(relative);
-    if path.exists() {
-        return Some(path);
-    }
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("CI=true but {} is missing", path.display());
-    }
-    println!("skipped: ../shared/data/{relative} not found (the binary-log tests need it)");
-    None
-}
+use common::shared_data::shared;
 
 fn read_all<T: Scalar>(
     inputs: &[&Path],

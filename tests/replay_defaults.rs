@@ -3,6 +3,8 @@
 //! `../shared` is there (skipped with a note otherwise).
 #![cfg(feature = "replay")]
 
+mod common;
+
 use delaynav::replay::defaults::{BLOCK_US, time::Date};
 use delaynav::replay::{
     FlightWindow, ImuNoise, LogDefaults, LogFiles, LogReader, NoiseSource, ReaderOptions,
@@ -10,23 +12,8 @@ use delaynav::replay::{
 };
 use delaynav::{Geodetic, Gps, GpsPosition, Imu, Mag};
 use nalgebra::Vector3;
-use std::path::PathBuf;
 
-/// A shared file, or `None` (with a note) when `../shared` is absent. In CI
-/// (`CI=true`) its absence fails the test.
-fn shared(relative: &str) -> Option<PathBuf> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(relative);
-    if path.exists() {
-        return Some(path);
-    }
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("CI=true but {} is missing", path.display());
-    }
-    println!("skipped: ../shared/data/{relative} not found");
-    None
-}
+use common::shared_data::shared;
 
 /// Standard normal draws from a fixed-seed generator (xorshift, Box-Muller).
 struct Normal(u64);

@@ -3,7 +3,8 @@
 and placement, `NAME-MS-PLACEMENT.txt`, tried in that order: larger delay
 first, a static before the stack), writes the benchmark JSON, prints the table with the
 limits of limits.json beside the figures and, with --check, exits 1 when a
-limit is exceeded. Called by `run`."""
+limit is exceeded, when an estimator refused more pushes than limits.json's
+`pushes.refused_max`, or has no estimate after the last sample. Called by `run`."""
 import argparse
 import json
 import pathlib
@@ -139,6 +140,25 @@ def main():
                 verdict = "yes" if ok else ("NO (not enforced: not_enforced in limits.json)"
                                             if known else "NO")
                 print(f"{name:<18} {key:<34} {value:>10,} {lim[key]:>10,}  {verdict}")
+    pushes = limits.get("pushes", {})
+    refused_max = pushes.get("refused_max", 0)
+    for name in ESTIMATORS:
+        ms, r = runs[name]
+        refused = {k: int(r[f"{k}_errors"]) for k in ("imu", "mag", "gps")}
+        total = sum(refused.values())
+        ok = total <= refused_max
+        if not ok:
+            failures.append(f"{name}: {total} pushes refused (imu {refused['imu']}, "
+                            f"mag {refused['mag']}, gps {refused['gps']}) > {refused_max}")
+        print(f"{name:<18} {'refused pushes':<34} {total:>10,} {'<= ' + str(refused_max):>10}"
+              f"  {'yes' if ok else 'NO'}")
+        if pushes.get("estimate_at_end", True):
+            # A firmware that does not report it has not shown an estimate.
+            has = r.get("final_estimate") == "1"
+            if not has:
+                failures.append(f"{name}: no estimate after the last sample")
+            print(f"{name:<18} {'estimate after the last sample':<34} "
+                  f"{'yes' if has else 'no':>10} {'yes':>10}  {'yes' if has else 'NO'}")
     for ratio in limits.get("ratios", []):
         num = report["estimators"][ratio["numerator"]][ratio["figure"]]
         den = report["estimators"][ratio["denominator"]][ratio["figure"]]

@@ -846,6 +846,18 @@ pub fn write_hover_trace(
     Ok(summary)
 }
 
+/// The suite's rows as `--check` verdicts (a row that cannot run fails).
+pub fn verdicts(rows: &[Row]) -> Vec<super::check::Verdict> {
+    rows.iter()
+        .map(|r| super::check::Verdict {
+            name: r.name.to_string(),
+            passed: r.passed(),
+            measured: r.measured,
+            limit: format!("{:?} ({})", r.limit, r.criterion),
+        })
+        .collect()
+}
+
 /// The suite's JSON document.
 pub fn to_json(rows: &[Row], options: &SuiteOptions) -> Value {
     json!({

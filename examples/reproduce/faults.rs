@@ -156,6 +156,19 @@ pub fn run(seed: u64, scale: f64) -> Vec<FaultResult> {
         .collect()
 }
 
+/// The suite's rows as `--check` verdicts (a NaN figure fails).
+pub fn verdicts(results: &[FaultResult]) -> Vec<super::check::Verdict> {
+    results
+        .iter()
+        .map(|r| super::check::Verdict {
+            name: r.name.to_string(),
+            passed: r.passed,
+            measured: Some(r.measured),
+            limit: format!("{} ({})", r.limit, r.criterion),
+        })
+        .collect()
+}
+
 /// A float, or `null` when it is not finite.
 fn number(x: f64) -> Value {
     if x.is_finite() { json!(x) } else { Value::Null }

@@ -17,6 +17,8 @@
 //!     --delay-rate-std 1 --delay-rate-time-constant 30 --json d.json      # rows with the drift-rate state
 //! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_low --seed 1 \
 //!     --csv target/low.csv                                                 # a row's run, per second
+//! cargo run --release --features sim --example reproduce -- --check \
+//!     --known-failures low.proposed_tilt_vs_bound,high.proposed_tilt_vs_bound   # verdicts enforced
 //! ```
 //!
 //! Rows: `bound` (`sim::trajectory_bound`, the linearized filter about the
@@ -50,6 +52,7 @@
 //! Estimators are registered in one place, [`estimators`]: adding a row is
 //! one line there.
 
+mod check;
 pub(crate) mod delay_suite;
 mod faults;
 
@@ -233,6 +236,19 @@ struct Args {
     /// every IMU sample [default: `NavConfig`'s].
     #[arg(long)]
     filter_rate_hz: Option<f64>,
+    /// With the default run, --faults or --delay-suite: print every verdict
+    /// and exit non-zero when one fails or a figure is NaN (`check.rs`).
+    #[arg(long)]
+    check: bool,
+    /// With --check: rows that fail for a known reason, printed as
+    /// `FAIL (known)`; naming a row that does not exist or passes fails.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ROW,...",
+        requires = "check"
+    )]
+    known_failures: Vec<String>,
 }
 
 /// `--filter-rate-hz`, set once from the arguments.
@@ -1904,6 +1920,9 @@ fn suite_options(args: &Args, seeds_n: u64) -> Result<delay_suite::SuiteOptions,
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
+    if args.check && (args.sweep.is_some() || args.bound_study || args.delay_trace.is_some()) {
+        return Err("--check applies to the default run, --faults and --delay-suite".into());
+    }
     if let Some(rate) = args.filter_rate_hz {
         FILTER_RATE_HZ.get_or_init(|| rate);
     }
@@ -1916,6 +1935,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let json = faults::to_json(&results, args.seed, scale);
         std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
         eprintln!("wrote {}", args.json.display());
+        if args.check {
+            check::enforce(&faults::verdicts(&results), &args.known_failures)?;
+        }
         return Ok(());
     }
     let seeds_n = args.seeds.unwrap_or(if args.quick { 2 } else { 5 });
@@ -2000,6 +2022,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let json = delay_suite::to_json(&rows, &options);
         std::fs::write(&args.json, serde_json::to_string_pretty(&json)? + "\n")?;
         eprintln!("wrote {}", args.json.display());
+        if args.check {
+            check::enforce(&delay_suite::verdicts(&rows), &args.known_failures)?;
+        }
         return Ok(());
     }
     let seeds: Vec<u64> = (args.seed..args.seed + seeds_n).collect();
@@ -2056,6 +2081,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 eprintln!("wrote {}", path.display());
             }
         }
+    }
+    if args.check {
+        check::enforce(&check::tables(&results), &args.known_failures)?;
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod flight;
+pub mod shared_data;
 
 /// Knuth's MMIX linear congruential generator.
 pub struct Lcg(pub u64);

@@ -32,6 +32,12 @@
 //!   letting it overwrite memory silently.
 //! - Flash: everything loaded into flash minus the embedded samples.
 //!
+//! - Refusals: `imu_errors`, `mag_errors`, `gps_errors` count the pushes
+//!   that returned an error; `no_estimate` the IMU samples after which
+//!   `estimate()` had none; `final_estimate` (1 or 0) whether it had one
+//!   after the last IMU sample (`report.py --check` requires it, and no more
+//!   refusals than limits.json allows).
+//!
 //! Output lines (semihosting): `INFO ...`, then one of `RESULT ...`,
 //! `OVERFLOW ...` (did not fit) or `FAULT ...`/`PANIC ...` (a failure);
 //! every figure as `key=value`.
@@ -367,6 +373,8 @@ struct Stats {
     estimate: Calls,
     /// Time of the most expensive IMU sample, us.
     max_sample_t_us: u64,
+    /// Whether `estimate()` had an estimate after the last IMU sample.
+    final_estimate: bool,
 }
 
 /// Pushes every embedded sample and counts the ticks of each call.
@@ -397,9 +405,10 @@ fn measure<E: Subject>(estimator: &mut E, overhead: u32) -> Stats {
                 let t0 = now();
                 let estimate = black_box(estimator.estimate());
                 let t1 = now();
+                stats.final_estimate = estimate.is_some();
                 stats
                     .estimate
-                    .add(elapsed(t0, t1).saturating_sub(overhead), estimate.is_some());
+                    .add(elapsed(t0, t1).saturating_sub(overhead), stats.final_estimate);
             }
             Event::Mag(_) => {
                 stats.mag.add(ticks, ok);
@@ -526,7 +535,7 @@ fn run<E: Subject>(estimator: &mut E, stack_construct: usize, object_on_stack: u
          stack_peak_construct={} stack_peak_push={} mean={} max={} max_t_us={} imu_mean={} \
          imu_max={} mag_mean={} mag_max={} gps_mean={} gps_max={} estimate_mean={} \
          estimate_max={} imu_samples={} mag_samples={} gps_fixes={} imu_errors={} mag_errors={} \
-         gps_errors={} no_estimate={} overhead_ticks={} flash={}",
+         gps_errors={} no_estimate={} final_estimate={} overhead_ticks={} flash={}",
         t.name,
         t.max_delay_s,
         placement(&t),
@@ -552,6 +561,7 @@ fn run<E: Subject>(estimator: &mut E, stack_construct: usize, object_on_stack: u
         s.mag.errors,
         s.gps.errors,
         s.estimate.errors,
+        u8::from(s.final_estimate),
         overhead,
         flash_bytes(),
     );
