@@ -9,7 +9,8 @@
 //!
 //! The JSON holds `"faults": [{"name", "passed", "criterion", "measured", "limit"}]`
 //! (`measured` is `null` when the navigator had no estimate where the row
-//! counts); `docs/faults.md` explains every row. `FAULT_DEBUG=<row name>`
+//! counts, the window is empty or a settle row never settles: each fails the
+//! row); `docs/faults.md` explains every row. `FAULT_DEBUG=<row name>`
 //! prints that row's errors once a second.
 
 use super::{CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, calibrate, nav};
