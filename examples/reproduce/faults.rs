@@ -9,7 +9,8 @@
 //!
 //! The JSON holds `"faults": [{"name", "passed", "criterion", "measured", "limit"}]`
 //! (`measured` is `null` when the navigator had no estimate where the row
-//! counts); `docs/faults.md` explains every row. `FAULT_DEBUG=<row name>`
+//! counts, the window is empty or a settle row never settles: each fails the
+//! row); `docs/faults.md` explains every row. `FAULT_DEBUG=<row name>`
 //! prints that row's errors once a second.
 
 use super::{CALIBRATION_DURATION_S, CALIBRATION_SEED_OFFSET, DelayStart, calibrate, nav};
@@ -198,4 +199,53 @@ pub fn to_json(results: &[FaultResult], seed: u64, scale: f64) -> Value {
         "estimator": "proposed",
         "faults": rows,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(name: &'static str, passed: bool, measured: f64) -> FaultResult {
+        FaultResult {
+            name,
+            passed,
+            criterion: "synthetic",
+            measured,
+            limit: 5.0,
+            note: None,
+        }
+    }
+
+    /// Each row's verdict reaches the JSON as it is; a figure that is not a number (no
+    /// estimate, an empty window, never settled) is written `null`, never a number.
+    #[test]
+    fn the_json_keeps_each_verdict_and_writes_no_figure_it_has_not() {
+        let mag = FaultResult {
+            note: Some(("max_tilt_deg", 2.5)),
+            ..row("mag", false, 1.0)
+        };
+        let lost = FaultResult {
+            note: Some(("max_tilt_deg", f64::NAN)),
+            ..row("lost", false, f64::NAN)
+        };
+        let results = [
+            row("settled", true, 2.9),
+            row("never", false, f64::INFINITY),
+            mag,
+            lost,
+        ];
+        let json = to_json(&results, 3, 0.5);
+        assert_eq!(
+            (json["seed"].as_u64(), json["duration_s"].as_f64()),
+            (Some(3), Some(30.0))
+        );
+        let rows = json["faults"].as_array().expect("rows");
+        let passed: Vec<bool> = rows.iter().map(|r| r["passed"] == true).collect();
+        assert_eq!(passed, [true, false, false, false]);
+        assert_eq!(rows[0]["measured"], 2.9);
+        assert!(rows[1]["measured"].is_null() && rows[3]["measured"].is_null());
+        assert_eq!(rows[2]["max_tilt_deg"], 2.5);
+        assert!(rows[3]["max_tilt_deg"].is_null());
+        assert!(rows[0].get("max_tilt_deg").is_none());
+    }
 }

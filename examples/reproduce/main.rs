@@ -2305,3 +2305,111 @@ mod delay_flags {
         assert_eq!(end.ratio, suite);
     }
 }
+
+#[cfg(test)]
+mod statistics {
+    //! The tables' statistics over seeds on made-up figures.
+
+    use super::*;
+
+    /// Every figure of one run equal to `x` (delay, NEES and NIS present).
+    fn metrics(x: f64) -> Metrics {
+        Metrics {
+            roll_deg: x,
+            pitch_deg: x,
+            yaw_deg: x,
+            tilt_deg: x,
+            heading_deg: x,
+            vel_m_s: x,
+            pos_m: x,
+            delay_s: Some(x),
+            gyro_bias_rad_s: [x; 3],
+            accel_bias_g: [x; 3],
+            nees: Some(x),
+            nis: Some(x),
+            us_per_imu_sample: x,
+        }
+    }
+
+    fn run(nees_series: Vec<f64>, nis: (f64, usize)) -> RunScore {
+        RunScore {
+            metrics: metrics(1.0),
+            trace: Trace::default(),
+            nees_series,
+            nis,
+        }
+    }
+
+    #[test]
+    fn medians_keep_failed_runs_visible() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert!(median(vec![1.0, f64::NAN, 2.0]).is_nan());
+        assert!(median(vec![1.0, f64::INFINITY, 2.0]).is_nan());
+        assert!(median(Vec::new()).is_nan());
+        assert_eq!(median_ordered(vec![f64::INFINITY, 1.0, 2.0]), 2.0);
+        assert_eq!(
+            median_ordered(vec![f64::INFINITY, 1.0, f64::INFINITY]),
+            f64::INFINITY
+        );
+        let mut rms = Rms::default();
+        assert!(rms.value().is_nan());
+        rms.add(3.0);
+        rms.add(-4.0);
+        assert!((rms.value() - 12.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn every_figure_is_summarized_over_the_seeds() {
+        let runs = [metrics(1.0), metrics(2.0), metrics(6.0)];
+        let summary = summarize(&runs);
+        assert_eq!(summary.mean.pos_m, 3.0);
+        assert_eq!(summary.median.vel_m_s, 2.0);
+        assert_eq!(summary.mean.accel_bias_g, [3.0; 3]);
+        assert_eq!(summary.mean.delay_s, Some(3.0));
+        assert!(summary.lo.tilt_deg < 3.0 && summary.hi.tilt_deg > 3.0);
+        assert!(
+            (summary.mean.tilt_deg - summary.lo.tilt_deg - (summary.hi.tilt_deg - 3.0)).abs()
+                < 1e-12
+        );
+        // A figure the estimator does not have stays absent; one seed without it fails it.
+        let mut without = runs.clone();
+        for r in &mut without {
+            r.delay_s = None;
+        }
+        assert_eq!(summarize(&without).mean.delay_s, None);
+        without[0].delay_s = Some(1.0);
+        assert!(summarize(&without).mean.delay_s.is_some_and(f64::is_nan));
+        // A failed seed shows in the mean and the median.
+        let mut failed = runs.clone();
+        failed[1].pos_m = f64::NAN;
+        let summary = summarize(&failed);
+        assert!(summary.mean.pos_m.is_nan() && summary.median.pos_m.is_nan());
+    }
+
+    #[test]
+    fn consistency_averages_over_seeds_then_over_time() {
+        // Two seeds: seed-averaged NEES 6, 6, 100 (the last outside the 95 % band).
+        let scores = [
+            run(vec![5.0, 7.0, 100.0], (12.0, 2)),
+            run(vec![7.0, 5.0, 100.0], (0.0, 0)),
+        ];
+        let c = consistency(&scores);
+        assert!((c.nees_mean - 112.0 / 3.0).abs() < 1e-12);
+        assert_eq!(c.nees_band, stats::chi2_band95(CONSISTENCY_DOF, 2));
+        assert!((c.nees_in_band - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(c.nis_mean, 6.0);
+        assert_eq!(c.nis_band, stats::chi2_band95(CONSISTENCY_DOF, 2));
+        // An instant without an estimate makes the mean NaN, and is not in the band.
+        let lost = [
+            run(vec![5.0, f64::NAN, 6.0], (0.0, 0)),
+            run(vec![7.0, 5.0, 6.0], (0.0, 0)),
+        ];
+        let c = consistency(&lost);
+        assert!(c.nees_mean.is_nan() && c.nis_mean.is_nan());
+        assert!((c.nees_in_band - 2.0 / 3.0).abs() < 1e-12);
+        // Seeds of different lengths: the common instants only.
+        let c = consistency(&[run(vec![6.0, 6.0], (0.0, 0)), run(vec![6.0], (0.0, 0))]);
+        assert_eq!((c.nees_mean, c.nees_in_band), (6.0, 1.0));
+    }
+}

@@ -57,5 +57,23 @@ mod tests {
         assert!((m - lo - (hi - m)).abs() < 1e-12);
         let (lo, hi) = chi2_band95(6, 1);
         assert!((lo - 1.237).abs() < 1e-3 && (hi - 14.449).abs() < 1e-3);
+        // The average of 2: chi2_{0.025, 12} / 2 = 4.404 / 2, chi2_{0.975, 12} / 2 = 23.337 / 2.
+        let (lo, hi) = chi2_band95(6, 2);
+        assert!((lo - 4.404 / 2.0).abs() < 1e-3 && (hi - 23.337 / 2.0).abs() < 1e-3);
+    }
+
+    /// A failed run (a value not finite) shows as NaN instead of being averaged away; one value
+    /// has a mean and no interval; nothing has neither.
+    #[test]
+    fn a_failed_or_missing_run_shows() {
+        let all_nan = |(m, lo, hi): (f64, f64, f64)| m.is_nan() && lo.is_nan() && hi.is_nan();
+        assert!(all_nan(mean_ci95(&[1.0, f64::NAN, 3.0])));
+        assert!(all_nan(mean_ci95(&[1.0, f64::INFINITY, 3.0])));
+        assert!(all_nan(mean_ci95(&[])));
+        let (m, lo, hi) = mean_ci95(&[2.5]);
+        assert!(m == 2.5 && lo.is_nan() && hi.is_nan());
+        assert_eq!(mean_ci95(&[2.0, 2.0, 2.0]), (2.0, 2.0, 2.0));
+        let (lo, hi) = chi2_band95(6, 0);
+        assert!(lo.is_nan() && hi.is_nan());
     }
 }

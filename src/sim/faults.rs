@@ -447,8 +447,10 @@ impl Reference {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Metric {
     /// Seconds from `from_s` to the last sample whose horizontal error
-    /// (against the truth moved by `offset_ne_m`) exceeds `threshold_m`; 0
-    /// when none does, the rest of the run when the last sample does.
+    /// (against the truth moved by `offset_ne_m`) exceeds `threshold_m` (a
+    /// sample without an estimate counts as exceeding it); 0 when none does,
+    /// infinite when the last sample of the run does (it never settled),
+    /// NaN when no sample lies at or after `from_s`.
     SettleHorizontal {
         /// Start, s.
         from_s: f64,
@@ -522,7 +524,8 @@ pub struct FaultResult {
     pub passed: bool,
     /// What is measured.
     pub criterion: &'static str,
-    /// The figure (NaN when the navigator had no estimate where it counts).
+    /// The figure (NaN when the navigator had no estimate where it counts or
+    /// the window holds no sample; infinite when a settle row never settles).
     pub measured: f64,
     /// The limit.
     pub limit: f64,
@@ -832,16 +835,24 @@ pub fn evaluate(
             offset_ne_m,
         } => {
             // NaN (no estimate) counts as outside the bound.
-            let last_bad = trace
-                .iter()
-                .rev()
-                .take_while(|p| p.t_s >= from_s)
-                .find(|p| {
-                    let e = p.horizontal_error_m(offset_ne_m);
-                    e.is_nan() || e > threshold_m
-                })
-                .map(|p| p.t_s);
-            last_bad.map_or(0.0, |t| t - from_s)
+            let outside = |p: &TracePoint| {
+                let e = p.horizontal_error_m(offset_ne_m);
+                e.is_nan() || e > threshold_m
+            };
+            match trace.last() {
+                // No sample in the window: nothing measured.
+                None => f64::NAN,
+                Some(last) if last.t_s < from_s => f64::NAN,
+                // Outside at the end of the run: it never settled, however
+                // little of the run was left.
+                Some(last) if outside(last) => f64::INFINITY,
+                Some(_) => trace
+                    .iter()
+                    .rev()
+                    .take_while(|p| p.t_s >= from_s)
+                    .find(|p| outside(p))
+                    .map_or(0.0, |p| p.t_s - from_s),
+            }
         }
         Metric::MaxHorizontal { from_s } => {
             max_of(from(from_s).map(|p| p.horizontal_error_m([0.0; 2])))
