@@ -22,9 +22,11 @@
 //!   update's axes); a richer status from the loop (waiting for motion,
 //!   outside its range) is meant to replace `last_valid_axes`.
 
-use super::NavRefusals;
+use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
+use crate::ekf16::state::{POS, VEL};
 use crate::ekf16::{GpsReset, RefusalCounters};
+use crate::estimate::{Estimate, Navigator};
 use crate::scalar::Scalar;
 
 /// Longest time since the last fused GPS fix for velocity and position to
@@ -128,4 +130,50 @@ pub struct Health<T: Scalar> {
     pub ekf_refusals: RefusalCounters,
     /// The delay's status.
     pub delay: DelayHealth<T>,
+}
+
+impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
+    /// What the navigator can vouch for now (see [`health`](crate::nav::health)).
+    pub fn health(&self) -> Health<T> {
+        let alignment = self.alignment();
+        let aligned = alignment == AlignmentState::Aligned;
+        let horizon = self.ekf.time_us().unwrap_or(0);
+        let recent =
+            |t: Option<u64>, stale: u64| t.is_some_and(|t| horizon <= t.saturating_add(stale));
+        let p = self.ekf.covariance();
+        let std = |i: usize| p[(i, i)].max(T::zero()).sqrt();
+        let horizontal_std = (p[(POS, POS)] + p[(POS + 1, POS + 1)])
+            .max(T::zero())
+            .sqrt();
+        let velocity_std = std(VEL).max(std(VEL + 1)).max(std(VEL + 2));
+        let gps_recent = recent(self.ekf.last_gps_fused_us(), GPS_STALE_US);
+        let mag_fused = self.ekf.last_mag_fused_us();
+        let estimated = self.is_estimating();
+        Health {
+            t_us: self.imu_clock.last(),
+            alignment,
+            tilt_valid: aligned,
+            heading_valid: aligned && recent(mag_fused, HEADING_STALE_US),
+            velocity_valid: aligned && gps_recent && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
+            position_valid: aligned && gps_recent && horizontal_std <= T::lit(MAX_POSITION_STD_M),
+            delay_valid: !estimated
+                || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
+            last_reset: self.last_reset.get(),
+            refusals: self.refusals,
+            ekf_refusals: self.ekf_refusals(),
+            delay: DelayHealth {
+                estimated,
+                delay_s: self.delay_s(),
+                delay_std_s: self.delay_std_s(),
+                last_valid_axes: self.last_update.get().map(|u| u.axes.map(|a| a.valid)),
+                valid_updates: self.valid_delay_updates,
+                status: estimated.then(|| self.delay_loop.status()),
+            },
+        }
+    }
+
+    /// The present estimate with its [`Health`] (`None` until aligned).
+    pub fn estimate_with_health(&self) -> Option<(Estimate<T>, Health<T>)> {
+        Some((self.estimate()?, self.health()))
+    }
 }

@@ -1,0 +1,180 @@
+//! The delayed horizon: where it is, how it steps through the IMU history
+//! (eq. 15's reads, the filter period, catching up after the delay
+//! shrinks), and how its state reaches the present.
+
+use super::refusals::bump;
+use super::{DelayCompensatedNav, HISTORY_ORDER};
+use crate::ekf16::state::{POS, VEL};
+use crate::estimate::Navigator;
+use crate::scalar::Scalar;
+use crate::sensors::Imu;
+use nalgebra::Vector3;
+
+impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
+    /// The horizon time for the present `t_us`, or `None` when the horizon
+    /// does not move (or cannot be read yet).
+    pub(super) fn horizon_target(&self, t_us: u64, dt_us: u64) -> Option<u64> {
+        let target = t_us.checked_sub(self.delay_us())?;
+        if self.history.len() <= HISTORY_ORDER {
+            return None;
+        }
+        let oldest = self.times.oldest()?;
+        let Some(horizon) = self.horizon_us() else {
+            return Some(target);
+        };
+        if target <= horizon {
+            return None;
+        }
+        let max_step = (self.config.max_horizon_step_ratio * T::lit(dt_us as f64))
+            .as_f64()
+            .max(1.0) as u64;
+        let capped = target.min(horizon.saturating_add(max_step));
+        // After a gap the history restarted: the capped horizon is no longer
+        // readable, jump to the target (the EKF grows P over the gap).
+        if capped < oldest {
+            Some(target)
+        } else {
+            Some(capped)
+        }
+    }
+
+    /// The horizon: the newest instant read from the history (the horizon
+    /// EKF's time, or later by the samples accumulated for its next step).
+    pub(super) fn horizon_us(&self) -> Option<u64> {
+        self.deltas.end_us().max(self.ekf.time_us())
+    }
+
+    /// Moves the horizon to `t_h` with the history read at eq. (15)'s
+    /// delays. The sample goes to the horizon EKF at once when it predicts
+    /// at every sample (or is not initialized), else into the accumulated
+    /// step, which the EKF predicts over when it spans the filter period
+    /// (to half an IMU step) or when `force` asks for the EKF at `t_h` (a
+    /// fix to fuse). True when the EKF's time moved.
+    pub(super) fn step_horizon(&mut self, t_us: u64, t_h: u64, force: bool) -> bool {
+        let (d_f, d_w) = self.group_delays_s();
+        let us = |d: T| (d * T::lit(1e6)).round().as_f64().max(0.0) as u64;
+        // The whitened streams at t_h + D (the raw sensors' t_h), by time.
+        let (times, history, headers) = (&self.times, &self.history, &mut self.history_headers);
+        let mut read = |at_us: u64| {
+            let d = times.delay_samples::<T>(at_us.min(t_us))?;
+            history.read::<HISTORY_ORDER>(d, headers).ok()
+        };
+        // Equal group delays (pass-through whitening): one read holds both.
+        let a = read(t_h + us(d_f));
+        let (w, reads) = if d_w == d_f {
+            (a, 1)
+        } else {
+            (read(t_h + us(d_w)), 2)
+        };
+        self.interpolation_taps += reads * (HISTORY_ORDER as u64 + 1);
+        let (Some(a), Some(w)) = (a, w) else {
+            return false;
+        };
+        let sample = Imu {
+            t_us: t_h,
+            gyro_rad_s: w.fixed_rows::<3>(3).into_owned(),
+            accel_m_s2: a.fixed_rows::<3>(0).into_owned(),
+        };
+        let step_us = self
+            .deltas
+            .end_us()
+            .map_or(0, |end| t_h.saturating_sub(end));
+        let every_sample = self.filter_period_us == 0 || !self.ekf.is_initialized();
+        if every_sample || step_us > self.config.ekf.max_imu_step_us {
+            // A gap is one step of its own (the EKF grows P over it).
+            let flushed = self.flush_deltas();
+            self.fuse_due_mags();
+            match self.ekf.push_imu(&sample) {
+                Ok(()) => self.horizon_steps += 1,
+                Err(_) => bump(&mut self.refusals.horizon_refused),
+            }
+            self.deltas.restart(&sample);
+            return flushed || self.ekf.time_us() == Some(t_h);
+        }
+        self.deltas.push(&sample);
+        let due = self.deltas.elapsed_us().saturating_add(step_us / 2) >= self.filter_period_us;
+        (force || due) && self.flush_deltas()
+    }
+
+    /// Predicts the horizon EKF over the accumulated step; true when it
+    /// moved the EKF's time.
+    fn flush_deltas(&mut self) -> bool {
+        let before = self.ekf.time_us();
+        let Some(deltas) = self.deltas.take() else {
+            return false;
+        };
+        // Samples due at the EKF's present time are fused before it moves.
+        self.fuse_due_mags();
+        match self.ekf.push_imu_deltas(&deltas) {
+            Ok(()) => self.horizon_steps += 1,
+            Err(_) => bump(&mut self.refusals.horizon_refused),
+        }
+        self.ekf.time_us() != before
+    }
+
+    /// Steps the horizon to the instant a fix received at `t_fix` describes,
+    /// `t_fix - tau`, when that lies between the horizon and the newest IMU
+    /// sample's horizon target (a fix arriving between IMU samples), and
+    /// brings the horizon EKF to the horizon: the fix is then fused at its
+    /// own instant, not up to one IMU step early or one filter step late.
+    pub(super) fn advance_horizon_to_fix(&mut self, t_fix_us: u64) {
+        let (Some(last), Some(horizon)) = (self.last_imu, self.horizon_us()) else {
+            return;
+        };
+        if let Some(target) = t_fix_us.checked_sub(self.delay_us())
+            && target > horizon
+            && target <= last.t_us
+        {
+            self.step_horizon(last.t_us, target, true);
+        }
+        if self.flush_deltas() || self.ekf.time_us() != Some(horizon) {
+            self.horizon_moved();
+        }
+    }
+
+    /// Brings the horizon state to the present (starts the output state on
+    /// the first call after the EKF initialized).
+    pub(super) fn correct_present(&mut self) {
+        let (Some(t_h), Some(last)) = (self.ekf.time_us(), self.last_imu) else {
+            return;
+        };
+        if !self.ekf.is_initialized() {
+            return;
+        }
+        let x_h = *self.ekf.state_vector();
+        if !self.forward.is_started() {
+            self.forward
+                .start(&x_h, last.t_us, &last.gyro_rad_s, &last.accel_m_s2);
+        }
+        self.forward.correct(t_h, &x_h);
+    }
+
+    /// The horizon EKF's time, velocity and covariance before a fusion.
+    pub(super) fn horizon_prior(&self) -> Option<HorizonPrior<T>> {
+        if !self.ekf.is_initialized() {
+            return None;
+        }
+        let x = self.ekf.state_vector();
+        let p = self.ekf.covariance();
+        Some(HorizonPrior {
+            t_us: self.ekf.time_us()?,
+            velocity: x.fixed_rows::<3>(VEL).into_owned(),
+            covariance: core::array::from_fn(|i| {
+                [
+                    p[(POS + i, POS + i)],
+                    p[(POS + i, VEL + i)],
+                    p[(VEL + i, VEL + i)],
+                ]
+            }),
+        })
+    }
+}
+
+/// The horizon EKF before a GPS fusion: its time (us), velocity (NED, m/s)
+/// and, per axis, `[P_pp, P_pv, P_vv]`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct HorizonPrior<T: Scalar> {
+    pub(super) t_us: u64,
+    pub(super) velocity: Vector3<T>,
+    pub(super) covariance: [[T; 3]; 3],
+}
