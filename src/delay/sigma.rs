@@ -1,0 +1,189 @@
+//! The reported standard deviation: the gain fusion's, matched to the
+//! innovations the loop actually sees once locked; the horizon's
+//! innovation windows as a second observation of the delay.
+
+use super::delay_loop::acquiring_window_variance;
+use super::{AXES, DelayLoop};
+use crate::scalar::Scalar;
+use crate::zero_option::ZeroOption;
+
+/// Time constant of the innovation match that scales the reported sigma, s
+/// (two independent 5 s buffers). Until it has seen that many updates, the
+/// match is the plain mean of the windows so far (weight `1 / n` for the
+/// `n`-th, `n` counted up to 255): one window alone would set it.
+pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
+
+/// Smallest squared scale of the reported sigma (the scale never exceeds 1:
+/// it only removes the pessimism of the noise model).
+pub const SIGMA_SCALE2_MIN: f64 = 0.01;
+
+/// Largest squared scale of the reported sigma with the innovation
+/// observation on (its windows' variances are measured, not pessimistic, so
+/// the match may widen the sigma as well as narrow it).
+pub const SIGMA_SCALE2_MAX: f64 = 16.0;
+
+impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
+    DelayLoop<T, BUF, LAGS, HIST>
+{
+    /// The squared scale applied to the GFA's variance: the mean normalized
+    /// innovation squared while locked (1 before), within
+    /// `[SIGMA_SCALE2_MIN, 1]`.
+    pub(super) fn sigma_scale2(&self) -> T {
+        if self.config.innovation_window_s > T::zero() {
+            return if self.locked && !self.following && self.window_nis > T::zero() {
+                self.window_nis
+                    .clamp(T::lit(SIGMA_SCALE2_MIN), T::lit(SIGMA_SCALE2_MAX))
+            } else {
+                T::one()
+            };
+        }
+        if self.locked && !self.following {
+            self.innovation_ratio
+                .clamp(T::lit(SIGMA_SCALE2_MIN), T::one())
+        } else {
+            T::one()
+        }
+    }
+
+    /// Covariance matching: the running mean, over [`SIGMA_MATCH_TIME_S`],
+    /// of the valid axes' squared innovations `(z_i - tau)^2` divided by their
+    /// predicted variance `P + Q + R_i` (one buffer's `R_i`: successive
+    /// windows share their data, so one window is one measurement of that
+    /// variance). Only while locked.
+    pub(super) fn match_innovations(
+        &mut self,
+        dt_s: T,
+        q_s2: T,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) {
+        if !self.locked || self.following {
+            return;
+        }
+        let tau = self.fusion.delay_s();
+        let p = self.fusion.variance_s2() + q_s2;
+        let (mut sum, mut n) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let e = z[axis] - tau;
+            sum += e * e / (p + r_buffer_s2[axis]);
+            n += T::one();
+        }
+        if n > T::zero() {
+            self.innovations_matched = self.innovations_matched.saturating_add(1);
+            let alpha = (dt_s / T::lit(SIGMA_MATCH_TIME_S))
+                .min(T::one())
+                .max(T::one() / T::lit(f64::from(self.innovations_matched)));
+            self.innovation_ratio += alpha * (sum / n - self.innovation_ratio);
+        }
+    }
+
+    /// The last window of the innovation observation: `(delay, std)`, s.
+    pub fn innovation_estimate(&self) -> Option<(T, T)> {
+        self.innovation_window.get()
+    }
+
+    /// Fuses the innovation window, when one is complete, into the gain
+    /// fusion with its variance times
+    /// [`DelayLoopConfig::innovation_noise_scale`].
+    pub(super) fn fuse_innovations(&mut self, t_us: u64) {
+        let window_s = self.config.innovation_window_s;
+        if window_s <= T::zero() {
+            return;
+        }
+        let Some((z, variance)) = self.innovation.take(t_us, window_s) else {
+            return;
+        };
+        let previous = self.innovation_window.get();
+        self.innovation_window = ZeroOption::Some((z, variance.sqrt()));
+        if !(self.locked || self.config.innovation_before_lock) {
+            return;
+        }
+        let r = if self.locked {
+            variance * self.config.innovation_noise_scale
+        } else {
+            match acquiring_window_variance(&self.config, (z, variance), previous) {
+                Some(r) => r,
+                None => return,
+            }
+        };
+        let e = z - self.fusion.delay_s();
+        let nis = e * e / (self.fusion.variance_s2() + r);
+        if self.locked && !self.following {
+            let alpha = if self.window_nis > T::zero() {
+                (window_s / T::lit(SIGMA_MATCH_TIME_S)).min(T::one())
+            } else {
+                T::one()
+            };
+            self.window_nis += alpha * (nis - self.window_nis);
+        }
+        // A window far outside the estimate's spread: the delay moved (a
+        // step); restart from the window rather than pull at the GFA's pace.
+        let k = self.config.innovation_reacquire_sigma;
+        if k > T::zero() && nis > k * k && self.fusion.reset(z, r.sqrt()).is_ok() {
+            return;
+        }
+        let _ = self.fusion.update(z, r);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::delay::*;
+    use approx::assert_relative_eq;
+
+    /// The innovation match starts as the plain mean of the windows: a first
+    /// window at 4x its predicted variance and a second at 0 give 2, not the
+    /// first window's 4 (then forgetting at `dt / SIGMA_MATCH_TIME_S`).
+    fn match_starts_as_a_mean<T: Scalar>() {
+        let mut config = DelayLoopConfig::<T>::default();
+        config.fusion.initial_std_s = T::lit(0.01);
+        let mut delay_loop = DefaultDelayLoop::<T>::new(config).unwrap();
+        assert!(delay_loop.locked);
+        let tau = delay_loop.delay_s();
+        let (dt, q) = (T::lit(0.1), T::zero());
+        let r = [T::lit(0.01 * 0.01); AXES];
+        // (z - tau)^2 / (P + R) = 4 with P = R = 1e-4 s^2.
+        let far = [tau + T::lit(0.02 * 2.0_f64.sqrt()); AXES];
+        let valid = [true; AXES];
+        delay_loop.match_innovations(dt, q, &far, &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(4.0),
+            max_relative = T::lit(1e-4)
+        );
+        delay_loop.match_innovations(dt, q, &[tau; AXES], &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(2.0),
+            max_relative = T::lit(1e-4)
+        );
+        // The mean of 4 and 98 zeros after 100 windows; then forgetting at
+        // dt / SIGMA_MATCH_TIME_S = 0.01 per window.
+        for _ in 0..98 {
+            delay_loop.match_innovations(dt, q, &[tau; AXES], &valid, &r);
+        }
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(0.04),
+            max_relative = T::lit(1e-3)
+        );
+        delay_loop.match_innovations(dt, q, &far, &valid, &r);
+        assert_relative_eq!(
+            delay_loop.innovation_ratio,
+            T::lit(0.04 + 0.01 * (4.0 - 0.04)),
+            max_relative = T::lit(1e-3)
+        );
+    }
+
+    #[test]
+    fn match_starts_as_a_mean_f32() {
+        match_starts_as_a_mean::<f32>();
+    }
+
+    #[test]
+    fn match_starts_as_a_mean_f64() {
+        match_starts_as_a_mean::<f64>();
+    }
+}

@@ -1,0 +1,231 @@
+//! The control of the loop: a lock followed when it drifts, re-acquired
+//! when every axis disagrees, the range's edges watched; axes that disagree
+//! with the best measured one left out.
+
+use super::{AXES, AxisPeak, DelayLoop};
+use crate::scalar::Scalar;
+
+/// Largest difference between the delay the horizon applied to a fix and
+/// the loop's estimate for the innovation window to be fused, s.
+pub const MAX_APPLIED_DELAY_ERROR_S: f64 = 0.02;
+
+/// Before lock, an innovation window is fused only within this many
+/// standard deviations (scaled as fused) of the previous window: 3 gave
+/// the same delay suite, 1.5 the same but for one row, 1 was worse
+/// (`docs/journal/2026-11-25-delay-robust-acquisition.md`).
+pub const ACQUIRE_AGREEMENT_SIGMA: f64 = 2.0;
+
+/// Largest disagreement between two valid axes of one window, in standard
+/// deviations `sqrt(R_i + R_j)` of their difference.
+pub const AXIS_AGREEMENT_SIGMA: f64 = 3.0;
+
+/// Cross-axis check of one window: every axis measures the same delay, so a
+/// valid axis whose peak lies beyond [`AXIS_AGREEMENT_SIGMA`] of the best
+/// measured one (smallest `R_i`, the most motion) is left out. Such a peak
+/// comes from an error of `a_fwd` that follows the motion (the navigator's
+/// tilt), not from the delay: on the 1 Hz high scenario the east axis gave
+/// 0.80 s with a peak of 0.97 while north gave 0.19 s.
+pub(super) fn drop_inconsistent_axes<T: Scalar>(
+    z: &[T; AXES],
+    valid: &mut [bool; AXES],
+    r: &[T; AXES],
+) {
+    // The valid axis of smallest `R`, with its `R` (no index kept out of
+    // the loop, and `best < AXES` stated: no reachable panic, benches/no-panic).
+    let mut best: Option<(usize, T)> = None;
+    for axis in (0..AXES).filter(|&a| valid[a]) {
+        if best.is_none_or(|(_, r_best)| r[axis] < r_best) {
+            best = Some((axis, r[axis]));
+        }
+    }
+    let Some((best, _)) = best.filter(|&(b, _)| b < AXES) else {
+        return;
+    };
+    let k = T::lit(AXIS_AGREEMENT_SIGMA);
+    for axis in 0..AXES {
+        if axis != best && valid[axis] && (z[axis] - z[best]).abs() > k * (r[axis] + r[best]).sqrt()
+        {
+            valid[axis] = false;
+        }
+    }
+}
+
+/// Peaks of moving axes sitting on one edge of the shift window.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct EdgeRun<T: Scalar> {
+    pub(super) since_us: u64,
+    pub(super) below: bool,
+    pub(super) peak: T,
+}
+
+impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
+    DelayLoop<T, BUF, LAGS, HIST>
+{
+    /// Re-acquisition after a step (see [`DelayLoop::reacquire`]): the
+    /// correlation searches the whole range, so the estimate jumps to each
+    /// window's measurement, the mean of the valid axes weighted by
+    /// `1 / R_i`, with that mean's variance. Once successive window
+    /// measurements have stayed within [`DelayLoopConfig::acquire_sigma`] of
+    /// their standard deviation for [`DelayLoopConfig::lock_after_s`], the
+    /// loop locks again and the gain fusion keeps the final word. Returns the
+    /// weights used (as gains).
+    pub(super) fn follow(
+        &mut self,
+        t_us: u64,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) -> [T; AXES] {
+        let mut gains = [T::zero(); AXES];
+        let (mut weight, mut weighted) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let w = T::one() / r_buffer_s2[axis];
+            weight += w;
+            weighted += w * z[axis];
+        }
+        if weight <= T::zero() {
+            self.stable_since_us = None;
+            return gains;
+        }
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            gains[axis] = T::one() / (r_buffer_s2[axis] * weight);
+        }
+        let mean = weighted / weight;
+        let variance = T::one() / weight;
+        let agrees =
+            (mean - self.fusion.delay_s()).abs() <= self.config.acquire_sigma * variance.sqrt();
+        let since = match self.stable_since_us {
+            Some(since) if agrees => since,
+            _ => t_us,
+        };
+        self.stable_since_us = Some(since);
+        if self.fusion.reset(mean, variance.sqrt()).is_ok()
+            && T::lit((t_us - since) as f64 * 1e-6) >= self.config.lock_after_s
+        {
+            self.locked = true;
+            self.following = false;
+            self.stable_since_us = None;
+        }
+        gains
+    }
+
+    /// Follows the peaks of the axes that move (IMU variance above the
+    /// threshold, peak value above `min_peak`) but are not valid because
+    /// they sit on an edge of the shift window: when no axis is valid and
+    /// all such axes sit on the same edge, the run continues.
+    pub(super) fn track_edges(
+        &mut self,
+        t_us: u64,
+        peaks: &[AxisPeak<T>; AXES],
+        valid: &[bool; AXES],
+    ) {
+        let lower_edge = T::lit(self.shift_min as f64);
+        let (mut below, mut above, mut peak) = (0usize, 0usize, T::zero());
+        for p in peaks.iter().filter(|p| {
+            !p.interior
+                && p.peak >= self.config.min_peak
+                && p.accel_variance >= self.config.min_accel_variance_m2_s4
+        }) {
+            if p.shift_samples <= lower_edge {
+                below += 1;
+            } else {
+                above += 1;
+            }
+            peak = peak.max(p.peak);
+        }
+        let edge_below = match (valid.iter().any(|&v| v), below, above) {
+            (false, b, 0) if b > 0 => Some(true),
+            (false, 0, a) if a > 0 => Some(false),
+            (true, ..) => None,
+            // Mixed edges, or nothing moving: keep the run as it is.
+            _ => return,
+        };
+        self.edge = match (edge_below, self.edge.get()) {
+            (None, _) => None,
+            (Some(b), Some(run)) if run.below == b => Some(EdgeRun {
+                peak: run.peak.max(peak),
+                ..run
+            }),
+            (Some(b), _) => Some(EdgeRun {
+                since_us: t_us,
+                below: b,
+                peak,
+            }),
+        }
+        .into();
+    }
+
+    /// Re-acquisition (see [`DelayLoopConfig::reacquire_sigma`]): restarts the
+    /// GFA from the mean of the valid measurements when they all disagree
+    /// with the estimate, on one side, for long enough. A deviation from the
+    /// paper, whose loop has a fixed gain and follows a delay step only at the
+    /// GFA's pace.
+    pub(super) fn reacquire(
+        &mut self,
+        t_us: u64,
+        z: &[T; AXES],
+        valid: &[bool; AXES],
+        r_buffer_s2: &[T; AXES],
+    ) -> bool {
+        let k = self.config.reacquire_sigma;
+        if k <= T::zero() {
+            return false;
+        }
+        let tau = self.fusion.delay_s();
+        let p = self.fusion.variance_s2();
+        let (mut count, mut above, mut below) = (0usize, 0usize, 0usize);
+        let (mut z_sum, mut r_sum) = (T::zero(), T::zero());
+        for axis in (0..AXES).filter(|&a| valid[a]) {
+            let innovation = z[axis] - tau;
+            let bound = k * (p + r_buffer_s2[axis]).sqrt();
+            count += 1;
+            z_sum += z[axis];
+            r_sum += r_buffer_s2[axis];
+            if innovation > bound {
+                above += 1;
+            } else if innovation < -bound {
+                below += 1;
+            }
+        }
+        if count == 0 || (above != count && below != count) {
+            self.disagreeing_since_us = None;
+            return false;
+        }
+        let since = *self.disagreeing_since_us.get_or_insert(t_us);
+        if T::lit((t_us - since) as f64 * 1e-6) < self.config.reacquire_after_s {
+            return false;
+        }
+        self.disagreeing_since_us = None;
+        let n = T::lit(count as f64);
+        // The mean of `count` measurements of variance mean(R_i): variance
+        // mean(R) / count; the loop acquires again from there.
+        let restarted = self
+            .fusion
+            .reset(z_sum / n, (r_sum / (n * n)).sqrt())
+            .is_ok();
+        if restarted {
+            self.locked = false;
+            self.following = true;
+            self.stable_since_us = None;
+        }
+        restarted
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An axis far from the best-measured one is left out; one within its
+    /// spread stays; a single valid axis is kept.
+    #[test]
+    fn inconsistent_axis_is_left_out() {
+        let r = [0.0004, 0.0016, 0.0009];
+        let mut valid = [true, true, true];
+        drop_inconsistent_axes(&[0.20, 0.80, 0.23], &mut valid, &r);
+        assert_eq!(valid, [true, false, true]);
+        let mut single = [false, true, false];
+        drop_inconsistent_axes(&[0.0, 0.80, 0.0], &mut single, &r);
+        assert_eq!(single, [false, true, false]);
+    }
+}
