@@ -142,6 +142,28 @@ impl<T: Scalar> SensorDelays<T> {
     }
 }
 
+/// The default `V_i` motion threshold,
+/// [`DelayLoopConfig::min_accel_variance_m2_s4`], (m/s^2)^2: the one the
+/// navigator needs. Its `a_fwd` carries its tilt error times g (1 deg:
+/// 0.17 m/s^2), which follows the motion; on an axis that barely moves,
+/// that error and the GPS noise place the correlation peak anywhere in the
+/// window with a high coefficient. On the simulator, an axis at 0.3-1
+/// (m/s^2)^2 gave peaks from 0.5 to 0.97 s for a 0.2 s delay.
+pub const DEFAULT_MIN_ACCEL_VARIANCE_M2_S4: f64 = 2.0;
+
+/// The default `V_i` peak threshold, [`DelayLoopConfig::min_peak`] (the
+/// navigator's, as [`DEFAULT_MIN_ACCEL_VARIANCE_M2_S4`]).
+pub const DEFAULT_MIN_PEAK: f64 = 0.9;
+
+/// The motion threshold of [`DelayLoopConfig::clean_input`], (m/s^2)^2: a
+/// loop fed an acceleration without the navigator's tilt error (a
+/// reference trajectory, a separate attitude solution) measures the delay
+/// from weaker motion.
+pub const CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4: f64 = 0.25;
+
+/// The peak threshold of [`DelayLoopConfig::clean_input`].
+pub const CLEAN_INPUT_MIN_PEAK: f64 = 0.5;
+
 /// GPS rate below which [`DelayLoopConfig::adapted_to_gps_rate`] turns on
 /// the fix-interval correlation ([`DelayLoopConfig::matched_fix_intervals`]),
 /// Hz. Measured: it takes the suite's `gps_1hz` from 84 to 23 ms, while at
@@ -279,8 +301,8 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             gps_diff_span: 2,
             smoothing_cutoff_hz: T::lit(1.0),
             matched_fix_intervals: false,
-            min_accel_variance_m2_s4: T::lit(0.25),
-            min_peak: T::lit(0.5),
+            min_accel_variance_m2_s4: T::lit(DEFAULT_MIN_ACCEL_VARIANCE_M2_S4),
+            min_peak: T::lit(DEFAULT_MIN_PEAK),
             fixes_per_update: 1,
             max_imu_gap_s: T::lit(0.1),
             max_gps_gap_s: T::lit(0.5),
@@ -350,6 +372,17 @@ impl<T: Scalar> DelayLoopConfig<T> {
         innovation_acquire_noise_scale: T::ZERO,
         fusion: GainFusionConfig::ZEROED,
     };
+
+    /// The defaults with the validity thresholds of a loop fed a clean
+    /// acceleration ([`CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4`],
+    /// [`CLEAN_INPUT_MIN_PEAK`]) instead of the navigator's.
+    pub fn clean_input() -> Self {
+        Self {
+            min_accel_variance_m2_s4: T::lit(CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4),
+            min_peak: T::lit(CLEAN_INPUT_MIN_PEAK),
+            ..Self::default()
+        }
+    }
 
     /// This configuration adapted to a GPS delivering `gps_rate_hz` fixes per
     /// second (1 to 20 Hz), within the capacities of [`DefaultDelayLoop`]:
@@ -683,7 +716,7 @@ struct EdgeRun<T: Scalar> {
 /// let velocity = |t: f64| {
 ///     Vector3::new(-3.0 / 1.3 * (1.3 * t).cos(), 2.0 / 0.7 * (0.7 * t).sin(), -(2.1 * t).cos() / 2.1)
 /// };
-/// let mut config = DelayLoopConfig::<f64>::default();
+/// let mut config = DelayLoopConfig::<f64>::clean_input();
 /// config.fusion.initial_delay_s = 0.4;
 /// let mut delay_loop = DefaultDelayLoop::<f64>::new(config)?;
 /// for k in 1..=4000u64 {
@@ -1395,7 +1428,7 @@ mod tests {
         let after = |rate: f64, configured: f64| {
             DelayLoopConfig::<f64> {
                 reacquire_after_s: configured,
-                ..DelayLoopConfig::default()
+                ..DelayLoopConfig::clean_input()
             }
             .adapted_to_gps_rate(rate)
             .unwrap()
@@ -1412,7 +1445,7 @@ mod tests {
     /// window at 4x its predicted variance and a second at 0 give 2, not the
     /// first window's 4 (then forgetting at `dt / SIGMA_MATCH_TIME_S`).
     fn match_starts_as_a_mean<T: Scalar>() {
-        let mut config = DelayLoopConfig::<T>::default();
+        let mut config = DelayLoopConfig::<T>::clean_input();
         config.fusion.initial_std_s = T::lit(0.01);
         let mut delay_loop = DefaultDelayLoop::<T>::new(config).unwrap();
         assert!(delay_loop.locked);
@@ -1482,11 +1515,13 @@ mod tests {
     #[test]
     fn default_capacities_fit_every_adapted_rate() {
         let mut delay_loop = DefaultDelayLoop::<f32>::BLANK;
-        delay_loop.configure(DelayLoopConfig::default()).unwrap();
+        delay_loop
+            .configure(DelayLoopConfig::clean_input())
+            .unwrap();
         for tenth_hz in 10..=200u16 {
             let rate = f32::from(tenth_hz) / 10.0;
             for (min, max) in [(0.0, 1.2), (-0.6, 0.6)] {
-                let mut config = DelayLoopConfig::<f32>::default();
+                let mut config = DelayLoopConfig::<f32>::clean_input();
                 config.fusion.delay_min_s = min;
                 config.fusion.delay_max_s = max;
                 config.fusion.initial_delay_s = 0.0;
@@ -1495,7 +1530,7 @@ mod tests {
                 assert!(fits.is_ok(), "{rate} Hz, {min} to {max} s: {fits:?}");
             }
         }
-        let mut config = DelayLoopConfig::<f32>::default();
+        let mut config = DelayLoopConfig::<f32>::clean_input();
         config.fusion.delay_max_s = 1.24;
         assert!(delay_loop.configure(config).is_err());
     }
@@ -1506,7 +1541,7 @@ mod tests {
         let config = DelayLoopConfig::<T> {
             innovation_noise_scale: T::lit(3.0),
             innovation_acquire_noise_scale: T::lit(2.0),
-            ..DelayLoopConfig::default()
+            ..DelayLoopConfig::clean_input()
         };
         let window = (T::lit(0.2), T::lit(1e-4));
         // Bound: 2 sqrt((1e-4 + 1e-4) 6) = 69 ms.

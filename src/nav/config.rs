@@ -9,16 +9,13 @@ use crate::scalar::Scalar;
 /// `(15 - 1) / 2 = 7` samples (7 ms at 1 kHz).
 pub const WHITENING_TAPS: usize = 15;
 
-/// The navigator's default `V_i` motion threshold, (m/s^2)^2 (the loop's
-/// own default is 0.25). The navigator's `a_fwd` carries its tilt error
-/// times g (1 deg: 0.17 m/s^2), which follows the motion; on an axis that
-/// barely moves, that error and the GPS noise place the correlation peak
-/// anywhere in the window with a high coefficient. On the simulator, an
-/// axis at 0.3-1 (m/s^2)^2 gave peaks from 0.5 to 0.97 s for a 0.2 s delay.
-pub const NAV_MIN_ACCEL_VARIANCE_M2_S4: f64 = 2.0;
+/// The navigator's `V_i` motion threshold, (m/s^2)^2: the delay loop's
+/// default, [`DEFAULT_MIN_ACCEL_VARIANCE_M2_S4`](crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4).
+pub const NAV_MIN_ACCEL_VARIANCE_M2_S4: f64 = crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4;
 
-/// The navigator's default `V_i` peak threshold (the loop's own is 0.5).
-pub const NAV_MIN_PEAK: f64 = 0.9;
+/// The navigator's `V_i` peak threshold: the delay loop's default,
+/// [`DEFAULT_MIN_PEAK`](crate::delay::DEFAULT_MIN_PEAK).
+pub const NAV_MIN_PEAK: f64 = crate::delay::DEFAULT_MIN_PEAK;
 
 /// How the GPS delay is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,18 +64,17 @@ impl<T: Scalar> WhiteningFilter<T> {
 
 /// Configuration of the delay-compensated navigator.
 ///
-/// Defaults: the [`Ekf16Config`] and [`DelayLoopConfig`] defaults except the
-/// loop's validity thresholds ([`NAV_MIN_ACCEL_VARIANCE_M2_S4`],
-/// [`NAV_MIN_PEAK`]), delay estimated from 0.2 s, 1 kHz IMU, no whitening (see the module docs for
-/// why), and a horizon that catches up at most twice as fast as real time.
+/// Defaults: the [`Ekf16Config`] and [`DelayLoopConfig`] defaults
+/// unchanged (one default per field), delay estimated from 0.2 s, 1 kHz
+/// IMU, no whitening (see the module docs for why), and a horizon that
+/// catches up at most twice as fast as real time.
 ///
 /// With the `serde` feature every config struct reads from a partial file
 /// (missing fields take their defaults) and refuses unknown fields by name.
-/// A nested table that is present starts from its own type's defaults: a
-/// `[delay_loop]` table gets [`DelayLoopConfig::default`]'s validity
-/// thresholds, not the navigator's [`NAV_MIN_ACCEL_VARIANCE_M2_S4`] and
-/// [`NAV_MIN_PEAK`]; set them in the table if you need them (the replay
-/// example merges a file over its own resolved config instead).
+/// A nested table that is present starts from its own type's defaults,
+/// which are the navigator's: a file that names a field changes that field
+/// only, however deep (`[delay_loop]` with `buffer_s = 4.0` leaves the
+/// loop's thresholds where [`NavConfig::default`] has them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
@@ -149,11 +145,7 @@ impl<T: Scalar> Default for NavConfig<T> {
     fn default() -> Self {
         Self {
             ekf: Ekf16Config::default(),
-            delay_loop: DelayLoopConfig {
-                min_accel_variance_m2_s4: T::lit(NAV_MIN_ACCEL_VARIANCE_M2_S4),
-                min_peak: T::lit(NAV_MIN_PEAK),
-                ..DelayLoopConfig::default()
-            },
+            delay_loop: DelayLoopConfig::default(),
             mode: DelayMode::Estimated {
                 initial_s: T::lit(0.2),
             },
