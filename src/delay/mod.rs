@@ -107,13 +107,13 @@ pub use matched::MATCHED_INTERVALS;
 
 use nalgebra::Vector3;
 
-use crate::error::Error;
+use crate::error::{Bound, Capacity, Error, Section, check};
 use crate::scalar::Scalar;
 use crate::sensors::GpsFix;
 use crate::zero_option::ZeroOption;
 use grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples,
-    non_negative_finite, positive_finite, signed_grid_samples, validate_grid,
+    signed_grid_samples, validate_grid,
 };
 use matched::MatchedCorrelator;
 
@@ -443,83 +443,71 @@ impl<T: Scalar> DelayLoopConfig<T> {
     }
 
     fn sizes(&self) -> Result<GridSizes, Error> {
-        let bad = |field, reason| {
-            Err(Error::InvalidConfig {
-                field,
-                value: None,
-                bound: crate::error::Bound::Rule(reason),
-            })
-        };
-        let positive = positive_finite::<T>;
         validate_grid(
             self.correlation_rate_hz,
             self.gps_diff_span,
             self.smoothing_cutoff_hz,
             ("buffer_s", self.buffer_s),
         )?;
-        if !non_negative_finite(self.min_accel_variance_m2_s4) {
-            return bad("min_accel_variance_m2_s4", "must be finite and >= 0");
-        }
-        if !(self.min_peak >= T::zero() && self.min_peak < T::one()) {
-            return bad("min_peak", "must be in [0, 1)");
-        }
-        if self.fixes_per_update == 0 {
-            return bad("fixes_per_update", "must be at least 1");
-        }
-        if !(positive(self.max_imu_gap_s) && positive(self.max_gps_gap_s)) {
-            return bad("max_gap_s", "must be positive and finite");
-        }
-        if !non_negative_finite(self.process_noise_ms2_per_s) {
-            return bad("process_noise_ms2_per_s", "must be finite and >= 0");
-        }
-        if !self.measurement_noise_ms2.iter().all(|r| positive(*r)) {
-            return bad("measurement_noise_ms2", "must be positive and finite");
-        }
-        if !non_negative_finite(self.reference_accel_variance_m2_s4) {
-            return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
-        }
-        if !(self.acquisition_motion_exponent.is_finite()
-            && self.acquisition_motion_exponent >= T::one()
-            && self.acquisition_motion_exponent <= T::lit(4.0))
+        check::not_negative("min_accel_variance_m2_s4", self.min_accel_variance_m2_s4)?;
+        check::interval("min_peak", self.min_peak, Bound::WithinBelow(0.0, 1.0))?;
+        check::count_at_least("fixes_per_update", self.fixes_per_update.into(), 1)?;
+        check::positive_finite("max_imu_gap_s", self.max_imu_gap_s)?;
+        check::positive_finite("max_gps_gap_s", self.max_gps_gap_s)?;
+        check::not_negative("process_noise_ms2_per_s", self.process_noise_ms2_per_s)?;
+        for (field, r) in [
+            "measurement_noise_ms2[0]",
+            "measurement_noise_ms2[1]",
+            "measurement_noise_ms2[2]",
+        ]
+        .into_iter()
+        .zip(self.measurement_noise_ms2)
         {
-            return bad("acquisition_motion_exponent", "must be 1 to 4");
+            check::positive_finite(field, r)?;
         }
-        if !(non_negative_finite(self.reacquire_sigma) && positive(self.reacquire_after_s)) {
-            return bad(
-                "reacquire",
-                "sigma must be finite and >= 0, duration positive",
-            );
-        }
-        if !(positive(self.lock_std_s)
-            && non_negative_finite(self.acquire_sigma)
-            && non_negative_finite(self.lock_after_s)
-            && non_negative_finite(self.out_of_range_after_s))
-        {
-            return bad(
-                "acquisition",
-                "lock_std_s must be positive, the others finite and >= 0",
-            );
-        }
-        if !(non_negative_finite(self.innovation_window_s)
-            && positive(self.innovation_noise_scale)
-            && non_negative_finite(self.innovation_reacquire_sigma)
-            && positive(self.innovation_acquire_noise_scale))
-        {
-            return bad(
-                "innovation",
-                "window must be finite and >= 0, noise scales positive and finite",
-            );
-        }
-        self.fusion.validate()?;
+        check::not_negative(
+            "reference_accel_variance_m2_s4",
+            self.reference_accel_variance_m2_s4,
+        )?;
+        check::within(
+            "acquisition_motion_exponent",
+            self.acquisition_motion_exponent,
+            T::one(),
+            T::lit(4.0),
+        )?;
+        check::not_negative("reacquire_sigma", self.reacquire_sigma)?;
+        check::positive_finite("reacquire_after_s", self.reacquire_after_s)?;
+        check::positive_finite("lock_std_s", self.lock_std_s)?;
+        check::not_negative("acquire_sigma", self.acquire_sigma)?;
+        check::not_negative("lock_after_s", self.lock_after_s)?;
+        check::not_negative("out_of_range_after_s", self.out_of_range_after_s)?;
+        check::not_negative("innovation_window_s", self.innovation_window_s)?;
+        check::positive_finite("innovation_noise_scale", self.innovation_noise_scale)?;
+        check::not_negative(
+            "innovation_reacquire_sigma",
+            self.innovation_reacquire_sigma,
+        )?;
+        check::positive_finite(
+            "innovation_acquire_noise_scale",
+            self.innovation_acquire_noise_scale,
+        )?;
+        self.fusion
+            .validate()
+            .map_err(|e| e.within(Section::Fusion))?;
         let period_us = grid_period_us(self.correlation_rate_hz);
         let shift_lo = signed_grid_samples(self.fusion.delay_min_s, period_us);
         let shift_hi = signed_grid_samples(self.fusion.delay_max_s, period_us);
         let offset = usize::try_from(-shift_lo.min(0)).unwrap_or(usize::MAX);
         if offset > PENDING_GPS_SAMPLES / 2 {
-            return bad(
-                "fusion.delay_min_s",
-                "a negative delay may reach PENDING_GPS_SAMPLES / 2 grid samples",
-            );
+            // A negative delay reaches at most `PENDING_GPS_SAMPLES / 2`
+            // grid samples (the GPS samples that can wait).
+            let limit = -((PENDING_GPS_SAMPLES / 2) as f64) * period_us as f64 * 1e-6;
+            return Err(check::invalid(
+                "delay_min_s",
+                self.fusion.delay_min_s,
+                Bound::AtLeast(limit),
+            )
+            .within(Section::Fusion));
         }
         Ok(GridSizes {
             period_us,
@@ -835,18 +823,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     pub fn configure(&mut self, config: DelayLoopConfig<T>) -> Result<(), Error> {
         self.configured = false;
         let sizes = config.sizes()?;
+        Self::check_capacities(&config, &sizes)?;
         self.correlator
             .configure(sizes.buffer_len, sizes.shift_min, sizes.lags)?;
-        if sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead > HIST {
-            return Err(Error::InvalidConfig {
-                field: "HIST",
-                value: Some(HIST as f64),
-                // The buffer, the largest shift and the GPS lead.
-                bound: crate::error::Bound::AtLeast(
-                    (sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead) as f64,
-                ),
-            });
-        }
         let fusion = GainFusion::new(config.fusion)?;
         self.config = config;
         self.period_s = T::lit(sizes.period_us as f64 * 1e-6);
@@ -887,6 +866,80 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.innovation_window = ZeroOption::None;
         self.window_nis = T::zero();
         self.configured = true;
+        Ok(())
+    }
+
+    /// The sizes of `config` against the capacities, each error on the
+    /// field that sets the size, with the value the capacity allows: the
+    /// buffer (`BUF`), the delay range (`LAGS`, and at least 3 shifts) and
+    /// the IMU grid history (`HIST`: the buffer, the largest shift and the
+    /// lead of the IMU stream over the GPS one).
+    fn check_capacities(config: &DelayLoopConfig<T>, sizes: &GridSizes) -> Result<(), Error> {
+        let period_s = sizes.period_us as f64 * 1e-6;
+        let capacity = |field, value: T, limit: f64, at_least, of, samples: usize| {
+            Err(check::invalid(
+                field,
+                value,
+                Bound::Capacity {
+                    limit: limit as f32,
+                    at_least,
+                    of,
+                    samples: samples as u32,
+                },
+            ))
+        };
+        if sizes.buffer_len < 2 {
+            return Err(check::invalid(
+                "buffer_s",
+                config.buffer_s,
+                Bound::AtLeast(1.5 * period_s),
+            ));
+        }
+        if sizes.buffer_len > BUF {
+            let limit = BUF as f64 * period_s;
+            return capacity(
+                "buffer_s",
+                config.buffer_s,
+                limit,
+                false,
+                Capacity::LoopBuf,
+                BUF,
+            );
+        }
+        let delay_max = config.fusion.delay_max_s;
+        let delay_min = config.fusion.delay_min_s.as_f64();
+        if sizes.lags < 3 {
+            return Err(check::invalid(
+                "delay_max_s",
+                delay_max,
+                Bound::AtLeast(delay_min + 2.0 * period_s),
+            )
+            .within(Section::Fusion));
+        }
+        if sizes.lags > LAGS {
+            let limit = delay_min + (LAGS - 1) as f64 * period_s;
+            return capacity(
+                "delay_max_s",
+                delay_max,
+                limit,
+                false,
+                Capacity::LoopLags,
+                LAGS,
+            )
+            .map_err(|e: Error| e.within(Section::Fusion));
+        }
+        let others = sizes.shift_min + sizes.lags + sizes.lead;
+        if sizes.buffer_len + others > HIST {
+            let limit = (HIST as f64 - others as f64) * period_s;
+            return capacity(
+                "buffer_s",
+                config.buffer_s,
+                limit,
+                false,
+                Capacity::LoopHist,
+                HIST,
+            );
+        }
         Ok(())
     }
 

@@ -447,7 +447,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         config.validate()?;
         if extras.len() != N - NAV_STATES {
             return Err(Error::InvalidConfig {
-                field: "extra_states",
+                field: "extra_states".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "one description per state beyond the 16 navigation states",
@@ -463,7 +463,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         if !extras.iter().all(valid) {
             return Err(Error::InvalidConfig {
-                field: "extra_states",
+                field: "extra_states".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "values must be finite, variances and intensities not negative",
@@ -523,7 +523,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         if !all_finite(p) || (0..N).any(|i| p[(i, i)] < T::zero()) {
             return Err(Error::InvalidConfig {
-                field: "initial covariance",
+                field: "initial covariance".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite with a non-negative diagonal"),
             });

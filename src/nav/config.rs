@@ -2,7 +2,7 @@
 
 use crate::delay::DelayLoopConfig;
 use crate::ekf16::Ekf16Config;
-use crate::error::{Bound, Error, check};
+use crate::error::{Error, Section, check};
 use crate::scalar::Scalar;
 
 /// Taps of the low-pass whitening FIR when one is configured: group delay
@@ -74,7 +74,9 @@ impl<T: Scalar> WhiteningFilter<T> {
 /// A nested table that is present starts from its own type's defaults,
 /// which are the navigator's: a file that names a field changes that field
 /// only, however deep (`[delay_loop]` with `buffer_s = 4.0` leaves the
-/// loop's thresholds where [`NavConfig::default`] has them).
+/// loop's thresholds where [`NavConfig::default`] has them). An error of
+/// [`validate`](Self::validate) names the field by its path in the file
+/// (`delay_loop.fusion.gamma`), its value and its bound.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
@@ -170,19 +172,15 @@ impl<T: Scalar> NavConfig<T> {
     /// is checked as [`loop_config`](Self::loop_config) builds it, so its
     /// `fusion.initial_delay_s` never matters.
     pub fn validate(&self) -> Result<(), Error> {
-        self.ekf.validate()?;
+        self.ekf.validate().map_err(|e| e.within(Section::Ekf))?;
         let (min, max) = (
             self.delay_loop.fusion.delay_min_s,
             self.delay_loop.fusion.delay_max_s,
         );
-        check::finite("delay_loop.fusion.delay_max_s", max)?;
-        if !(min.is_finite() && min < max) {
-            return Err(check::invalid(
-                "delay_loop.fusion.delay_min_s",
-                min,
-                Bound::Below(max.as_f64()),
-            ));
-        }
+        self.delay_loop
+            .fusion
+            .validate_range()
+            .map_err(|e| e.within(Section::Fusion).within(Section::DelayLoop))?;
         match self.mode {
             DelayMode::Estimated { initial_s } => {
                 check::within("mode.initial_s", initial_s, min, max)?;
@@ -191,7 +189,9 @@ impl<T: Scalar> NavConfig<T> {
                 check::within("mode.delay_s", delay_s, T::zero(), max)?;
             }
         }
-        self.loop_config().validate()?;
+        self.loop_config()
+            .validate()
+            .map_err(|e| e.within(Section::DelayLoop))?;
         check::positive_finite("imu_rate_hz", self.imu_rate_hz)?;
         for (field, filter) in [
             ("accel_whitening.cutoff_hz", self.accel_whitening),
