@@ -11,7 +11,7 @@ use nalgebra::{SVector, Vector3};
 /// A loop warmed up on 10 s of 1 kHz IMU / 10 Hz GPS sine motion delayed 0.2 s,
 /// and the time of its last IMU sample, us.
 fn warmed_loop<T: Scalar>() -> (DefaultDelayLoop<T>, u64) {
-    let mut delay_loop = DefaultDelayLoop::<T>::new(DelayLoopConfig::default()).unwrap();
+    let mut delay_loop = DefaultDelayLoop::<T>::new(DelayLoopConfig::clean_input()).unwrap();
     let accel = |t: f64| {
         Vector3::new(
             T::lit((1.3 * t).sin() * 3.0),

@@ -230,7 +230,7 @@ impl<T: Scalar> Navigator<T> for EskfPeer {
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
         let GpsPosition::Ned(p) = gps.position() else {
             return Err(Error::InvalidConfig {
-                field: "gps.position",
+                field: "gps.position".into(),
                 value: None,
                 bound: delaynav::error::Bound::Rule("the eskf row takes NED fixes"),
             });

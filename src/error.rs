@@ -50,9 +50,11 @@ pub enum Error {
     /// ``invalid configuration: `mode.initial_s` = 0.5, must lie in [0, 0.4]``.
     #[error("invalid configuration: `{field}`{shown}, {bound}", shown = ShownValue(*value))]
     InvalidConfig {
-        /// The field, as a path from the configuration checked
-        /// (`"delay_loop.fusion.delay_min_s"`, `"ekf.origin.lat_deg"`).
-        field: &'static str,
+        /// The field, as a path from the configuration the caller passed
+        /// (`delay_loop.fusion.delay_min_s`, `ekf.origin.lat_deg` for a
+        /// [`NavConfig`](crate::NavConfig)), whichever part validated it;
+        /// compares equal to that text.
+        field: ConfigPath,
         /// Its value (as `f64`; counts and flags too); `None` where the field
         /// is not a number.
         value: Option<f64>,
@@ -112,6 +114,156 @@ impl Error {
     pub(crate) fn not_configured() -> Self {
         Self::NotConfigured
     }
+
+    /// This error with its configuration path inside the table `section`
+    /// of an enclosing configuration (a parent's validation of a nested
+    /// one); other errors unchanged.
+    pub(crate) fn within(self, section: Section) -> Self {
+        match self {
+            Self::InvalidConfig {
+                field,
+                value,
+                bound,
+            } => Self::InvalidConfig {
+                field: field.within(section),
+                value,
+                bound,
+            },
+            other => other,
+        }
+    }
+}
+
+/// A table of a configuration that holds another configuration: the
+/// segments a parent prepends to the path of a nested configuration's
+/// error (one byte each, so that [`Error`] stays small without a heap).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum Section {
+    /// No segment (the unused slots of a path).
+    Empty,
+    /// [`NavConfig::ekf`](crate::NavConfig::ekf).
+    Ekf,
+    /// [`Aekf17Config::nav`](crate::Aekf17Config::nav).
+    Nav,
+    /// [`NavConfig::delay_loop`](crate::NavConfig::delay_loop).
+    DelayLoop,
+    /// [`DelayLoopConfig::fusion`](crate::DelayLoopConfig::fusion).
+    Fusion,
+}
+
+impl Section {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Empty => "",
+            Self::Ekf => "ekf",
+            Self::Nav => "nav",
+            Self::DelayLoop => "delay_loop",
+            Self::Fusion => "fusion",
+        }
+    }
+}
+
+/// Tables a path can cross above its field (`delay_loop.fusion`: 2).
+const PATH_DEPTH: usize = 3;
+
+/// Where a configuration error lies: the tables from the configuration the
+/// caller passed down to the field, as written in a config file
+/// (`delay_loop.fusion.gamma`). Displays as that text and compares equal to
+/// it (`field == "delay_loop.fusion.gamma"`).
+#[derive(Clone, Copy)]
+pub struct ConfigPath {
+    /// The enclosing tables, outermost first, then [`Section::Empty`].
+    sections: [Section; PATH_DEPTH],
+    /// The field within the innermost table (may itself hold a dot, e.g.
+    /// `origin.lat_deg`, `mode.initial_s`).
+    field: &'static str,
+}
+
+impl ConfigPath {
+    /// The path of `field` in the configuration checked.
+    pub const fn new(field: &'static str) -> Self {
+        Self {
+            sections: [Section::Empty; PATH_DEPTH],
+            field,
+        }
+    }
+
+    /// The field within its innermost table.
+    pub fn field(&self) -> &'static str {
+        self.field
+    }
+
+    /// Every segment, outermost first: the tables, then the field.
+    pub fn segments(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.sections
+            .iter()
+            .filter(|s| **s != Section::Empty)
+            .map(|s| s.name())
+            .chain(core::iter::once(self.field))
+    }
+
+    /// The text, character by character (no heap).
+    fn chars(&self) -> impl Iterator<Item = char> + '_ {
+        self.segments()
+            .enumerate()
+            .flat_map(|(i, segment)| (i > 0).then_some('.').into_iter().chain(segment.chars()))
+    }
+
+    /// The path inside `section` (a deeper path than [`PATH_DEPTH`] keeps
+    /// its outermost tables: none exists in the crate's configurations).
+    fn within(self, section: Section) -> Self {
+        let mut sections = [Section::Empty; PATH_DEPTH];
+        sections[0] = section;
+        sections[1..].copy_from_slice(&self.sections[..PATH_DEPTH - 1]);
+        Self { sections, ..self }
+    }
+}
+
+impl From<&'static str> for ConfigPath {
+    fn from(field: &'static str) -> Self {
+        Self::new(field)
+    }
+}
+
+impl core::fmt::Display for ConfigPath {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (i, segment) in self.segments().enumerate() {
+            if i > 0 {
+                f.write_str(".")?;
+            }
+            f.write_str(segment)?;
+        }
+        Ok(())
+    }
+}
+
+impl core::fmt::Debug for ConfigPath {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "ConfigPath(\"{self}\")")
+    }
+}
+
+impl PartialEq for ConfigPath {
+    /// Equal when the texts are: `ConfigPath::new("fusion.gamma")` equals
+    /// the path of `gamma` inside the `fusion` table.
+    fn eq(&self, other: &Self) -> bool {
+        self.chars().eq(other.chars())
+    }
+}
+
+impl Eq for ConfigPath {}
+
+impl PartialEq<str> for ConfigPath {
+    fn eq(&self, text: &str) -> bool {
+        self.chars().eq(text.chars())
+    }
+}
+
+impl PartialEq<&str> for ConfigPath {
+    fn eq(&self, text: &&str) -> bool {
+        *self == **text
+    }
 }
 
 /// The bound a configuration value broke (see [`Error::InvalidConfig`]).
@@ -137,8 +289,74 @@ pub enum Bound {
     Below(f64),
     /// Must lie in `[lo, hi]`.
     Within(f64, f64),
-    /// A rule stated in words (relations between fields, capacities).
+    /// Must lie in `[lo, hi)`.
+    WithinBelow(f64, f64),
+    /// Must lie in `(lo, hi]`.
+    AboveWithin(f64, f64),
+    /// Must be `<= limit` (or `>= limit` when `at_least`), in the field's
+    /// unit, for the sizes the configuration gives to fit the const generic
+    /// capacity `of`, which holds `samples`.
+    Capacity {
+        /// The field's largest (smallest) valid value.
+        limit: f32,
+        /// True: a lower bound.
+        at_least: bool,
+        /// The capacity.
+        of: Capacity,
+        /// What it holds, samples.
+        samples: u32,
+    },
+    /// The navigator's history (the field is `HIST`, the value its
+    /// capacity in IMU samples) is shorter than the longest delay, `delay_s`
+    /// (`delay_loop.fusion.delay_max_s` plus the whitening's group delay),
+    /// times the IMU rate `rate_hz`, with margins: it needs `needed`
+    /// samples, `short_by` more than it has.
+    History {
+        /// IMU samples needed.
+        needed: u32,
+        /// How many more than `HIST`.
+        short_by: u32,
+        /// The longest delay, s.
+        delay_s: f32,
+        /// The IMU rate, Hz.
+        rate_hz: f32,
+    },
+    /// A rule stated in words (relations between fields).
     Rule(&'static str),
+}
+
+/// A const generic capacity a configuration must fit (see
+/// [`Bound::Capacity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Capacity {
+    /// [`DelayLoop`](crate::DelayLoop)'s `BUF`: the correlation buffer,
+    /// grid samples.
+    LoopBuf,
+    /// [`DelayLoop`](crate::DelayLoop)'s `LAGS`: the shifts of the delay
+    /// range, grid samples.
+    LoopLags,
+    /// [`DelayLoop`](crate::DelayLoop)'s `HIST`: the IMU grid history (the
+    /// buffer, the largest shift and the lead of the IMU stream over the
+    /// GPS one), grid samples.
+    LoopHist,
+    /// The offline calibrator's `SHIFTS`: `2 S + 1` shifts.
+    CalibratorShifts,
+    /// The offline calibrator's `HIST`: the largest shift and the lead,
+    /// grid samples.
+    CalibratorHist,
+}
+
+impl core::fmt::Display for Capacity {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::LoopBuf => "the delay loop's const generic `BUF`",
+            Self::LoopLags => "the delay loop's const generic `LAGS`",
+            Self::LoopHist => "the delay loop's const generic `HIST`",
+            Self::CalibratorShifts => "the calibrator's const generic `SHIFTS`",
+            Self::CalibratorHist => "the calibrator's const generic `HIST`",
+        })
+    }
 }
 
 impl core::fmt::Display for Bound {
@@ -153,6 +371,37 @@ impl core::fmt::Display for Bound {
             Self::Above(l) => write!(f, "must be above {}", Number(l)),
             Self::Below(l) => write!(f, "must be below {}", Number(l)),
             Self::Within(lo, hi) => write!(f, "must lie in [{}, {}]", Number(lo), Number(hi)),
+            Self::WithinBelow(lo, hi) => {
+                write!(f, "must lie in [{}, {})", Number(lo), Number(hi))
+            }
+            Self::AboveWithin(lo, hi) => {
+                write!(f, "must lie in ({}, {}]", Number(lo), Number(hi))
+            }
+            Self::Capacity {
+                limit,
+                at_least,
+                of,
+                samples,
+            } => write!(
+                f,
+                "must be {} {} to fit {of} ({samples} samples)",
+                if at_least { ">=" } else { "<=" },
+                Number(limit.into()),
+            ),
+            Self::History {
+                needed,
+                short_by,
+                delay_s,
+                rate_hz,
+            } => write!(
+                f,
+                "must be >= {needed} IMU samples: the longest delay {} s \
+                 (`delay_loop.fusion.delay_max_s` plus the whitening's group delay) \
+                 times the IMU rate {} Hz, with margins; raise the const generic \
+                 `HIST` by {short_by}",
+                Number(delay_s.into()),
+                Number(rate_hz.into()),
+            ),
             Self::Rule(rule) => f.write_str(rule),
         }
     }
@@ -188,13 +437,13 @@ impl core::fmt::Display for ShownValue {
 /// The checks of the configurations' `validate()`, each naming the field,
 /// the value and the bound in its error.
 pub(crate) mod check {
-    use super::{Bound, Error};
+    use super::{Bound, ConfigPath, Error};
     use crate::scalar::Scalar;
 
     /// The error for `field = value` against `bound`.
     pub(crate) fn invalid<T: Scalar>(field: &'static str, value: T, bound: Bound) -> Error {
         Error::InvalidConfig {
-            field,
+            field: ConfigPath::new(field),
             value: Some(value.as_f64()),
             bound,
         }
@@ -268,15 +517,47 @@ pub(crate) mod check {
         require(v < limit, field, v, Bound::Below(limit.as_f64()))
     }
 
+    /// In the half-open interval `bound`, [`Bound::WithinBelow`] or
+    /// [`Bound::AboveWithin`] (NaN refused; an `f32` compares exactly as
+    /// `f64`).
+    pub(crate) fn interval<T: Scalar>(
+        field: &'static str,
+        v: T,
+        bound: Bound,
+    ) -> Result<(), Error> {
+        let x = v.as_f64();
+        let ok = match bound {
+            Bound::WithinBelow(lo, hi) => x >= lo && x < hi,
+            Bound::AboveWithin(lo, hi) => x > lo && x <= hi,
+            _ => false,
+        };
+        require(ok, field, v, bound)
+    }
+
     /// A count or other integer: `>= min`.
     pub(crate) fn count_at_least(field: &'static str, v: u64, min: u64) -> Result<(), Error> {
-        if v >= min {
+        count_within(field, v, min, u64::MAX)
+    }
+
+    /// A count or other integer: in `[min, max]` (`>= min` when `max` is
+    /// `u64::MAX`).
+    pub(crate) fn count_within(
+        field: &'static str,
+        v: u64,
+        min: u64,
+        max: u64,
+    ) -> Result<(), Error> {
+        if (min..=max).contains(&v) {
             Ok(())
         } else {
             Err(Error::InvalidConfig {
-                field,
+                field: ConfigPath::new(field),
                 value: Some(v as f64),
-                bound: Bound::AtLeast(min as f64),
+                bound: if max == u64::MAX {
+                    Bound::AtLeast(min as f64)
+                } else {
+                    Bound::Within(min as f64, max as f64)
+                },
             })
         }
     }

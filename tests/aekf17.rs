@@ -545,7 +545,10 @@ macro_rules! aekf17_tests {
                 );
                 let mut nav = c.nav;
                 nav.gps_velocity_std_m_s = lit(0.0);
-                assert_eq!(field_of(Aekf17Config { nav, ..c }), "gps_velocity_std_m_s");
+                assert_eq!(
+                    field_of(Aekf17Config { nav, ..c }),
+                    "nav.gps_velocity_std_m_s"
+                );
                 assert!(AugmentedEkf17::new(Aekf17Config { nav, ..c }).is_err());
             }
 

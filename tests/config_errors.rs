@@ -1,8 +1,12 @@
-//! Configuration errors name the field, its value and the bound it broke.
+//! Configuration errors name the field by its path from the configuration
+//! passed (`delay_loop.fusion.gamma`), its value and the bound it broke.
 
+use delaynav::delay::{CalibrationConfig, DefaultCalibrator, GainFusionConfig};
 use delaynav::error::Bound;
+use delaynav::nav::WhiteningFilter;
 use delaynav::{
-    Aekf17Config, DelayCompensatedNav, DelayMode, Ekf16Config, Error, Geodetic, NavConfig, Scalar,
+    Aekf17Config, DefaultDelayLoop, DelayCompensatedNav, DelayLoopConfig, DelayMode, Ekf16Config,
+    Error, Geodetic, NavConfig, Scalar,
 };
 
 fn nav_error<T: Scalar>(config: NavConfig<T>) -> (Error, String) {
@@ -20,7 +24,7 @@ fn messages<T: Scalar>() {
     assert_eq!(
         e,
         Error::InvalidConfig {
-            field: "delay_loop.fusion.delay_min_s",
+            field: "delay_loop.fusion.delay_min_s".into(),
             value: Some(lit(0.5).as_f64()),
             bound: Bound::Below(lit(0.4).as_f64()),
         }
@@ -44,7 +48,8 @@ fn messages<T: Scalar>() {
         "invalid configuration: `mode.initial_s` = 0.5, must lie in [0, 0.4]"
     );
 
-    // Latitude 95 deg is out of range, not "non-finite".
+    // Latitude 95 deg is out of range, not "non-finite"; the path is the
+    // one from the navigator's configuration.
     let mut c = NavConfig::<T>::default();
     c.ekf.origin = Some(Geodetic {
         lat_deg: 95.0,
@@ -53,7 +58,7 @@ fn messages<T: Scalar>() {
     });
     assert_eq!(
         nav_error(c).1,
-        "invalid configuration: `origin.lat_deg` = 95, must lie in [-90, 90]"
+        "invalid configuration: `ekf.origin.lat_deg` = 95, must lie in [-90, 90]"
     );
 
     // NaN is shown as such.
@@ -85,11 +90,30 @@ fn messages<T: Scalar>() {
         "invalid configuration: `initial_delay_s` = 1.5, must lie in [0, 1]"
     );
 
-    // The history capacity: its value and what it needs.
+    // The history capacity: its value, what it needs and why (the longest
+    // delay times the IMU rate), and by how much to raise it.
     let e = DelayCompensatedNav::<T, 512>::new(NavConfig::default()).unwrap_err();
-    assert!(
-        matches!(e, Error::InvalidConfig { field: "HIST", value: Some(v), bound: Bound::AtLeast(n) } if v == 512.0 && n > 512.0),
-        "{e}"
+    let Error::InvalidConfig {
+        field,
+        value,
+        bound: Bound::History {
+            needed, short_by, ..
+        },
+    } = e
+    else {
+        panic!("{e:?}")
+    };
+    assert_eq!((field, value), ("HIST".into(), Some(512.0)));
+    // 1 s at 1 kHz with the 2 % rate margin and 5 interpolation samples.
+    assert!((1025..=1026).contains(&needed), "{e}");
+    assert_eq!(short_by, needed - 512);
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "invalid configuration: `HIST` = 512, must be >= {needed} IMU samples: the longest \
+             delay 1 s (`delay_loop.fusion.delay_max_s` plus the whitening's group delay) times \
+             the IMU rate 1000 Hz, with margins; raise the const generic `HIST` by {short_by}"
+        )
     );
 }
 
@@ -97,6 +121,8 @@ fn messages<T: Scalar>() {
 fn messages_name_the_field_the_value_and_the_bound() {
     messages::<f32>();
     messages::<f64>();
+    each_section::<f32>();
+    each_section::<f64>();
 }
 
 fn fixed_mode_below_the_loop_default<T: Scalar>() {
@@ -141,4 +167,189 @@ fn the_start_delay_is_set_by_the_mode_only() {
     assert_eq!(c.loop_config().fusion.initial_delay_s, 0.3);
     let nav = DelayCompensatedNav::<f64>::new(c).unwrap();
     assert_eq!(nav.delay_s(), 0.3);
+}
+
+/// The text of the error of `config` through `DelayCompensatedNav::new`
+/// (validation, then the capacities).
+fn nav_text<T: Scalar>(config: NavConfig<T>) -> String {
+    DelayCompensatedNav::<T>::new(config)
+        .err()
+        .unwrap()
+        .to_string()
+}
+
+fn invalid(path_value_bound: &str) -> String {
+    format!("invalid configuration: {path_value_bound}")
+}
+
+/// Sets one bad value in a configuration.
+type Setter<T> = fn(&mut NavConfig<T>);
+
+/// A representative bad value in each section of each configuration: the
+/// path as written in a file, the value and the bound.
+fn each_section<T: Scalar>() {
+    let lit = T::lit;
+    // NavConfig: top level, a variant's field, a whitening filter, [ekf],
+    // [delay_loop] (checked by `validate` and by the loop's capacities),
+    // [delay_loop.fusion].
+    let cases: [(Setter<T>, &str); 9] = [
+        (
+            |c| c.imu_rate_hz = T::lit(0.0),
+            "`imu_rate_hz` = 0, must be positive and finite",
+        ),
+        (
+            |c| {
+                c.gyro_whitening = WhiteningFilter::LowPass {
+                    cutoff_hz: T::lit(600.0),
+                }
+            },
+            "`gyro_whitening.cutoff_hz` = 600, must be below 500",
+        ),
+        (
+            |c| c.ekf.gps_vertical_std_m = T::lit(-2.0),
+            "`ekf.gps_vertical_std_m` = -2, must be positive and finite",
+        ),
+        (
+            |c| c.delay_loop.min_peak = T::lit(1.0),
+            "`delay_loop.min_peak` = 1, must lie in [0, 1)",
+        ),
+        (
+            |c| c.delay_loop.buffer_s = T::lit(5.1),
+            "`delay_loop.buffer_s` = 5.1, must be <= 5 to fit the delay loop's const generic \
+             `BUF` (125 samples)",
+        ),
+        (
+            |c| c.delay_loop.measurement_noise_ms2[1] = T::lit(-1.0),
+            "`delay_loop.measurement_noise_ms2[1]` = -1, must be positive and finite",
+        ),
+        (
+            |c| c.delay_loop.max_gps_gap_s = T::lit(0.0),
+            "`delay_loop.max_gps_gap_s` = 0, must be positive and finite",
+        ),
+        (
+            |c| c.delay_loop.fusion.gamma = T::lit(0.0),
+            "`delay_loop.fusion.gamma` = 0, must lie in (0, 1]",
+        ),
+        (
+            |c| c.delay_loop.fusion.rate_time_constant_s = T::lit(-1.0),
+            "`delay_loop.fusion.rate_time_constant_s` = -1, must be positive and finite",
+        ),
+    ];
+    for (set, expected) in cases {
+        let mut c = NavConfig::<T>::default();
+        set(&mut c);
+        assert_eq!(nav_text(c), invalid(expected));
+    }
+
+    // Aekf17Config: its [nav] table and its own fields.
+    let mut c = Aekf17Config::<T>::default();
+    c.nav.gyro_noise_density = lit(-1.0);
+    assert_eq!(
+        c.validate().unwrap_err().to_string(),
+        invalid("`nav.gyro_noise_density` = -1, must be positive and finite")
+    );
+    let c = Aekf17Config {
+        delay_random_walk: lit(f64::INFINITY),
+        ..Aekf17Config::<T>::default()
+    };
+    assert_eq!(
+        c.validate().unwrap_err().to_string(),
+        invalid("`delay_random_walk` = inf, must be finite and >= 0")
+    );
+
+    // DelayLoopConfig alone: paths from the loop's configuration.
+    let loop_text =
+        |c: DelayLoopConfig<T>| DefaultDelayLoop::<T>::new(c).err().unwrap().to_string();
+    let c = DelayLoopConfig::<T> {
+        gps_diff_span: 9,
+        ..Default::default()
+    };
+    assert_eq!(
+        loop_text(c),
+        invalid("`gps_diff_span` = 9, must lie in [1, 8]")
+    );
+    let mut c = DelayLoopConfig::<T>::default();
+    c.fusion.initial_delay_s = lit(1.5);
+    assert_eq!(
+        loop_text(c),
+        invalid("`fusion.initial_delay_s` = 1.5, must lie in [0, 1]")
+    );
+    let mut c = DelayLoopConfig::<T>::default();
+    c.fusion.delay_max_s = lit(1.5);
+    assert_eq!(
+        loop_text(c),
+        invalid(
+            "`fusion.delay_max_s` = 1.5, must be <= 1.2 to fit the delay loop's const generic \
+             `LAGS` (31 samples)"
+        )
+    );
+    // A range as wide as `LAGS` allows, further out: the buffer, the
+    // largest shift and the lead no longer fit the IMU grid history.
+    let mut c = DelayLoopConfig::<T>::default();
+    c.fusion.delay_min_s = lit(0.5);
+    c.fusion.delay_max_s = lit(1.7);
+    c.fusion.initial_delay_s = lit(0.6);
+    assert_eq!(
+        loop_text(c),
+        invalid(
+            "`buffer_s` = 5, must be <= 4.72 to fit the delay loop's const generic `HIST` \
+             (192 samples)"
+        )
+    );
+
+    // GainFusionConfig alone.
+    let c = GainFusionConfig {
+        delay_min_s: lit(0.5),
+        delay_max_s: lit(0.5),
+        ..GainFusionConfig::<T>::default()
+    };
+    assert_eq!(
+        c.validate().unwrap_err().to_string(),
+        invalid("`delay_min_s` = 0.5, must be below 0.5")
+    );
+
+    // CalibrationConfig: a field, and the capacities of the calibrator.
+    let c = CalibrationConfig {
+        min_pairs: 2,
+        ..CalibrationConfig::<T>::default()
+    };
+    assert_eq!(
+        c.validate().unwrap_err().to_string(),
+        invalid("`min_pairs` = 2, must be >= 3")
+    );
+    let c = CalibrationConfig {
+        max_shift_s: lit(7.0),
+        ..CalibrationConfig::<T>::default()
+    };
+    assert_eq!(
+        DefaultCalibrator::<T>::new(c).err().unwrap().to_string(),
+        invalid(
+            "`max_shift_s` = 7, must be <= 6 to fit the calibrator's const generic `SHIFTS` \
+             (601 samples)"
+        )
+    );
+}
+
+#[test]
+fn a_path_compares_equal_to_its_text_and_the_error_stays_small() {
+    let mut c = NavConfig::<f64>::default();
+    c.delay_loop.fusion.gamma = 2.0;
+    let Err(Error::InvalidConfig { field, .. }) = c.validate() else {
+        panic!("expected InvalidConfig")
+    };
+    assert_eq!(field, "delay_loop.fusion.gamma");
+    assert_eq!(field.field(), "gamma");
+    assert_eq!(
+        field.segments().collect::<Vec<_>>(),
+        ["delay_loop", "fusion", "gamma"]
+    );
+    assert_eq!(
+        field,
+        delaynav::error::ConfigPath::new("delay_loop.fusion.gamma")
+    );
+    assert_ne!(field, "delay_loop.fusion");
+    assert_ne!(field, "delay_loop.fusion.gamma.x");
+    // Returned by every push: the path's tables cost one byte each (56
+    // bytes before the paths, 64 with them).
+    assert!(core::mem::size_of::<Error>() <= 64);
 }

@@ -62,7 +62,7 @@ macro_rules! delay_tests {
             }
 
             fn start_at(delay_s: f64) -> DelayLoopConfig<T> {
-                let mut config = DelayLoopConfig::<T>::default();
+                let mut config = DelayLoopConfig::<T>::clean_input();
                 config.fusion.initial_delay_s = delay_s as T;
                 config
             }
@@ -355,7 +355,7 @@ macro_rules! delay_tests {
 
             #[test]
             fn invalid_configurations_are_refused() {
-                let d = DelayLoopConfig::<T>::default();
+                let d = DelayLoopConfig::<T>::clean_input();
                 assert!(d.validate().is_ok());
                 let mut c = d;
                 c.buffer_s = -1.0;
@@ -636,7 +636,7 @@ mod no_panic {
         fn loop_never_panics_or_leaves_range(
             steps in proptest::collection::vec((0u64..400_000, any::<bool>(), value(), value(), value()), 200..1500)
         ) {
-            let mut delay_loop = DefaultDelayLoop::<f32>::new(DelayLoopConfig::default()).unwrap();
+            let mut delay_loop = DefaultDelayLoop::<f32>::new(DelayLoopConfig::clean_input()).unwrap();
             let mut t = 1_000_000u64;
             for (dt, is_gps, a, b, c) in steps {
                 // Mostly 1 ms steps, sometimes long gaps or going backwards.

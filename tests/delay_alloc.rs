@@ -22,7 +22,7 @@ fn per_sample_path_does_not_allocate<T: Scalar>() {
     scenario.duration_s = 15.0;
     let motion = Motion::random(2, 8, 0.05, 1.0, [6.0, 6.0, 3.0]);
     let events = scenario.events(&motion, |_| 0.2);
-    let mut delay_loop = DefaultDelayLoop::<T>::new(DelayLoopConfig::default()).unwrap();
+    let mut delay_loop = DefaultDelayLoop::<T>::new(DelayLoopConfig::clean_input()).unwrap();
     let mut line = FractionalDelayLine::<T, 3, 512, 3>::new();
     let mut fir = WhiteningFir::<T, 31>::low_pass(T::lit(20.0), T::lit(1000.0)).unwrap();
     let mut calibrator =

@@ -89,7 +89,7 @@ fn attitude_at(att: &[[f64; 4]], t: f64) -> [f64; 3] {
 
 /// Final delay estimate of the loop with `added_s` added to every GPS time.
 fn loop_delay(log: &Log, added_s: f64) -> (f64, usize, usize) {
-    let mut config = DelayLoopConfig::<f64>::default();
+    let mut config = DelayLoopConfig::<f64>::clean_input();
     config.fusion.initial_delay_s = 0.2;
     let mut delay_loop = DefaultDelayLoop::<f64>::new(config).unwrap();
     let added_us = (added_s * 1e6) as u64;

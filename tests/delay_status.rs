@@ -53,7 +53,7 @@ macro_rules! status_tests {
             }
 
             fn config(start_s: f64, range_s: (f64, f64)) -> DelayLoopConfig<T> {
-                let mut config = DelayLoopConfig::<T>::default();
+                let mut config = DelayLoopConfig::<T>::clean_input();
                 config.fusion.delay_min_s = range_s.0 as T;
                 config.fusion.delay_max_s = range_s.1 as T;
                 config.fusion.initial_delay_s = start_s as T;
@@ -157,7 +157,7 @@ macro_rules! status_tests {
                     println!("{rate} Hz: RMSE from 90 s {:.2} ms", rmse * 1e3);
                     assert!(rmse < tol, "{rate} Hz: RMSE {rmse}");
                 }
-                let base = DelayLoopConfig::<T>::default();
+                let base = DelayLoopConfig::<T>::clean_input();
                 for bad in [0.5, 25.0, f64::NAN] {
                     assert!(matches!(base.adapted_to_gps_rate(bad as T), Err(Error::OutOfRange { field: "gps_rate_hz", .. })));
                 }
@@ -217,7 +217,7 @@ status_tests!(f32_loop, f32);
 /// A range wider than the capacity is refused, naming the field.
 #[test]
 fn range_beyond_capacity_is_refused() {
-    let mut config = DelayLoopConfig::<f64>::default();
+    let mut config = DelayLoopConfig::<f64>::clean_input();
     config.fusion.delay_min_s = -0.9;
     config.fusion.delay_max_s = 0.6;
     assert!(matches!(

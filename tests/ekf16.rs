@@ -186,7 +186,7 @@ macro_rules! ekf16_tests {
                 assert_eq!(
                     bad.validate(),
                     Err(Error::InvalidConfig {
-                        field: "gyro_noise_density",
+                        field: "gyro_noise_density".into(),
                         value: Some(-1.0),
                         bound: delaynav::error::Bound::PositiveFinite,
                     })

@@ -215,7 +215,7 @@ fn configure_equals_new<T: Scalar>(mode: DelayMode<T>) {
     too_long.delay_loop.fusion.delay_max_s = T::lit(0.6);
     assert!(matches!(
         nav.configure(too_long),
-        Err(Error::InvalidConfig { field: "HIST", .. })
+        Err(Error::InvalidConfig { field, .. }) if field == "HIST"
     ));
     assert_refusing(&mut nav);
     let mut invalid = config;
@@ -270,7 +270,7 @@ fn filters_configure_equals_new<T: Scalar>() {
     assert_eq!(outcomes(&mut aekf, &events), reference);
 
     // The delay loop alone: the same updates.
-    let loop_config = DelayLoopConfig::<T>::default();
+    let loop_config = DelayLoopConfig::<T>::clean_input();
     let mut built = DefaultDelayLoop::new(loop_config).unwrap();
     let mut delay_loop = DefaultDelayLoop::BLANK;
     delay_loop.configure(loop_config).unwrap();

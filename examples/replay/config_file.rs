@@ -8,7 +8,7 @@
 //! run on the same `Ekf16Config`). An unknown key or a wrong type is an error
 //! naming the key and its line; the merged configuration is then validated.
 
-use delaynav::NavConfig;
+use delaynav::{DelayCompensatedNav, NavConfig};
 use std::path::Path;
 use toml::{Table, Value};
 
@@ -32,6 +32,9 @@ pub fn resolve(defaults: NavConfig<f64>, path: Option<&Path>) -> Result<NavConfi
     config
         .validate()
         .map_err(|e| format!("--config {shown}: {e}"))?;
+    // The sizes against the navigator's capacities (the delay loop's
+    // buffer and range, the history), still naming the file.
+    DelayCompensatedNav::<f64>::new(config).map_err(|e| format!("--config {shown}: {e}"))?;
     // The start delay is the mode's: show it where the loop keeps its own.
     config.delay_loop = config.loop_config();
     Ok(config)
@@ -117,6 +120,51 @@ mod tests {
         assert!(err.contains("mag_gates"), "{err}");
         let err = with_file("imu_rate_hz = -5.0\n", log_defaults()).unwrap_err();
         assert!(err.contains("imu_rate_hz"), "{err}");
+    }
+
+    #[test]
+    fn an_invalid_value_names_the_file_the_path_the_value_and_the_bound() {
+        let path = std::env::temp_dir().join("delaynav-config-invalid-buffer.toml");
+        std::fs::write(&path, "[delay_loop]\nbuffer_s = 5.1\n").unwrap();
+        let err = resolve(log_defaults(), Some(&path))
+            .unwrap_err()
+            .to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(
+            err,
+            format!(
+                "--config {}: invalid configuration: `delay_loop.buffer_s` = 5.1, must be <= 5 \
+                 to fit the delay loop's const generic `BUF` (125 samples)",
+                path.display()
+            )
+        );
+        let err = with_file("[delay_loop.fusion]\ngamma = 1.5\n", log_defaults()).unwrap_err();
+        assert!(
+            err.starts_with("--config ")
+                && err.ends_with(
+                    ": invalid configuration: `delay_loop.fusion.gamma` = 1.5, must lie in (0, 1]"
+                ),
+            "{err}"
+        );
+        let err = with_file(
+            "[ekf.origin]\nlat_deg = 91.0\nlon_deg = 0.0\nalt_m = 0.0\n",
+            log_defaults(),
+        )
+        .unwrap_err();
+        assert!(
+            err.ends_with("`ekf.origin.lat_deg` = 91, must lie in [-90, 90]"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_table_naming_one_field_changes_that_field_only() {
+        // Over the plain defaults too (no merge needed): the file of the
+        // issue moved the navigator's validity thresholds.
+        let c = with_file("[delay_loop]\nbuffer_s = 4.0\n", NavConfig::default()).unwrap();
+        let mut expected = NavConfig::default();
+        expected.delay_loop.buffer_s = 4.0;
+        assert_eq!(c, expected);
     }
 
     #[test]

@@ -119,7 +119,7 @@ impl<T: Scalar> Navigator<T> for FusionNav {
         }
         let GpsPosition::Ned(p) = gps.position() else {
             return Err(Error::InvalidConfig {
-                field: "gps.position",
+                field: "gps.position".into(),
                 value: None,
                 bound: delaynav::error::Bound::Rule("the fusion-nav row takes NED fixes"),
             });

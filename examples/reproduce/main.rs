@@ -2196,7 +2196,7 @@ mod delay_flags {
             "0.7",
         ]);
         let tuning = suite_options(&tried, 1).expect("valid").tuning;
-        let mut config = delaynav::delay::DelayLoopConfig::<f64>::default();
+        let mut config = delaynav::delay::DelayLoopConfig::<f64>::clean_input();
         tuning.apply(&mut config);
         assert_eq!(config.acquisition_motion_exponent, 3.0);
         assert_eq!(config.smoothing_cutoff_hz, 0.7);

@@ -17,13 +17,13 @@
 //! acceleration over 50 ms (see the module docs of
 //! [`aekf17`](super) for why the raw sample biases `tau` toward zero). A
 //! fix updates `tau` only while the smoothed acceleration clears 0.5 m/s²
-//! (the delay loop's motion threshold, `min_accel_variance_m2_s4 = 0.25`
-//! (m/s²)²) above what its noise, tilt and bias errors give; below it `tau`
+//! (the delay loop's motion threshold for a clean acceleration,
+//! `CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4 = 0.25` (m/s²)²) above what its noise, tilt and bias errors give; below it `tau`
 //! is not observable and is left to its random walk (module docs,
 //! "Observability").
 
 use crate::ekf16::Ekf16Config;
-use crate::error::{Error, check};
+use crate::error::{Error, Section, check};
 use crate::scalar::Scalar;
 
 /// Configuration of [`AugmentedEkf17`](super::AugmentedEkf17).
@@ -93,7 +93,7 @@ impl<T: Scalar> Aekf17Config<T> {
     /// Checks every field (the navigation part first); the first offending
     /// one is named in the error with its value and bound.
     pub fn validate(&self) -> Result<(), Error> {
-        self.nav.validate()?;
+        self.nav.validate().map_err(|e| e.within(Section::Nav))?;
         check::positive_finite("max_delay_s", self.max_delay_s)?;
         check::within(
             "initial_delay_s",

@@ -37,7 +37,7 @@ use super::grid::{
     GpsToGrid, ImuToGrid, admit_sample, grid_period_us, grid_samples, lead_samples, validate_grid,
 };
 use super::ring::Ring;
-use crate::error::{Bound, Error, check};
+use crate::error::{Bound, Capacity, Error, check};
 use crate::geo::{
     quaternion_from_euler, quaternion_from_rotation_vector, roll_pitch_from_accel, rotation_matrix,
 };
@@ -281,12 +281,22 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         config.validate()?;
         let period_us = grid_period_us(config.correlation_rate_hz);
         let max_shift = grid_samples(config.max_shift_s, period_us);
-        if 2 * max_shift + 1 > SHIFTS {
-            return Err(check::invalid(
+        let period_s = period_us as f64 * 1e-6;
+        let capacity = |limit: f64, of, samples: usize| {
+            check::invalid(
                 "max_shift_s",
                 config.max_shift_s,
-                Bound::Rule("2 S + 1 shifts exceed the capacity SHIFTS"),
-            ));
+                Bound::Capacity {
+                    limit: limit as f32,
+                    at_least: false,
+                    of,
+                    samples: samples as u32,
+                },
+            )
+        };
+        if 2 * max_shift + 1 > SHIFTS {
+            let limit = (SHIFTS.saturating_sub(1) / 2) as f64 * period_s;
+            return Err(capacity(limit, Capacity::CalibratorShifts, SHIFTS));
         }
         let lead = lead_samples(
             config.gps_diff_span,
@@ -295,11 +305,9 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
             period_us,
         );
         if max_shift + lead >= HIST {
-            return Err(Error::InvalidConfig {
-                field: "HIST",
-                value: Some(HIST as f64),
-                bound: Bound::Above((max_shift + lead) as f64),
-            });
+            // The largest shift and the lead need fewer than `HIST` samples.
+            let limit = (HIST as f64 - 1.0 - lead as f64) * period_s;
+            return Err(capacity(limit, Capacity::CalibratorHist, HIST));
         }
         Ok(Self {
             config,

@@ -1,13 +1,32 @@
 //! [`DelayLoopConfig`]: the loop's settings, their defaults, their validation
 //! and the grid sizes they give; the low-GPS-rate adaptation.
 
-use super::grid::{
-    grid_period_us, grid_samples, lead_samples, non_negative_finite, positive_finite,
-    signed_grid_samples, validate_grid,
-};
+use super::grid::{grid_period_us, grid_samples, lead_samples, signed_grid_samples, validate_grid};
 use super::{AXES, GainFusionConfig, PENDING_GPS_SAMPLES};
-use crate::error::Error;
+use crate::error::{Bound, Error, Section, check};
 use crate::scalar::Scalar;
+
+/// The default `V_i` motion threshold,
+/// [`DelayLoopConfig::min_accel_variance_m2_s4`], (m/s^2)^2: the one the
+/// navigator needs. Its `a_fwd` carries its tilt error times g (1 deg:
+/// 0.17 m/s^2), which follows the motion; on an axis that barely moves,
+/// that error and the GPS noise place the correlation peak anywhere in the
+/// window with a high coefficient. On the simulator, an axis at 0.3-1
+/// (m/s^2)^2 gave peaks from 0.5 to 0.97 s for a 0.2 s delay.
+pub const DEFAULT_MIN_ACCEL_VARIANCE_M2_S4: f64 = 2.0;
+
+/// The default `V_i` peak threshold, [`DelayLoopConfig::min_peak`] (the
+/// navigator's, as [`DEFAULT_MIN_ACCEL_VARIANCE_M2_S4`]).
+pub const DEFAULT_MIN_PEAK: f64 = 0.9;
+
+/// The motion threshold of [`DelayLoopConfig::clean_input`], (m/s^2)^2: a
+/// loop fed an acceleration without the navigator's tilt error (a
+/// reference trajectory, a separate attitude solution) measures the delay
+/// from weaker motion.
+pub const CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4: f64 = 0.25;
+
+/// The peak threshold of [`DelayLoopConfig::clean_input`].
+pub const CLEAN_INPUT_MIN_PEAK: f64 = 0.5;
 
 /// GPS rate below which [`DelayLoopConfig::adapted_to_gps_rate`] turns on
 /// the fix-interval correlation ([`DelayLoopConfig::matched_fix_intervals`]),
@@ -156,8 +175,8 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             gps_diff_span: 2,
             smoothing_cutoff_hz: T::lit(1.0),
             matched_fix_intervals: false,
-            min_accel_variance_m2_s4: T::lit(0.25),
-            min_peak: T::lit(0.5),
+            min_accel_variance_m2_s4: T::lit(DEFAULT_MIN_ACCEL_VARIANCE_M2_S4),
+            min_peak: T::lit(DEFAULT_MIN_PEAK),
             fixes_per_update: 1,
             max_imu_gap_s: T::lit(0.1),
             max_gps_gap_s: T::lit(0.5),
@@ -228,6 +247,17 @@ impl<T: Scalar> DelayLoopConfig<T> {
         fusion: GainFusionConfig::ZEROED,
     };
 
+    /// The defaults with the validity thresholds of a loop fed a clean
+    /// acceleration ([`CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4`],
+    /// [`CLEAN_INPUT_MIN_PEAK`]) instead of the navigator's.
+    pub fn clean_input() -> Self {
+        Self {
+            min_accel_variance_m2_s4: T::lit(CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4),
+            min_peak: T::lit(CLEAN_INPUT_MIN_PEAK),
+            ..Self::default()
+        }
+    }
+
     /// This configuration adapted to a GPS delivering `gps_rate_hz` fixes per
     /// second (1 to 20 Hz), within the capacities of [`DefaultDelayLoop`](crate::delay::DefaultDelayLoop):
     ///
@@ -287,83 +317,71 @@ impl<T: Scalar> DelayLoopConfig<T> {
     }
 
     pub(super) fn sizes(&self) -> Result<GridSizes, Error> {
-        let bad = |field, reason| {
-            Err(Error::InvalidConfig {
-                field,
-                value: None,
-                bound: crate::error::Bound::Rule(reason),
-            })
-        };
-        let positive = positive_finite::<T>;
         validate_grid(
             self.correlation_rate_hz,
             self.gps_diff_span,
             self.smoothing_cutoff_hz,
             ("buffer_s", self.buffer_s),
         )?;
-        if !non_negative_finite(self.min_accel_variance_m2_s4) {
-            return bad("min_accel_variance_m2_s4", "must be finite and >= 0");
-        }
-        if !(self.min_peak >= T::zero() && self.min_peak < T::one()) {
-            return bad("min_peak", "must be in [0, 1)");
-        }
-        if self.fixes_per_update == 0 {
-            return bad("fixes_per_update", "must be at least 1");
-        }
-        if !(positive(self.max_imu_gap_s) && positive(self.max_gps_gap_s)) {
-            return bad("max_gap_s", "must be positive and finite");
-        }
-        if !non_negative_finite(self.process_noise_ms2_per_s) {
-            return bad("process_noise_ms2_per_s", "must be finite and >= 0");
-        }
-        if !self.measurement_noise_ms2.iter().all(|r| positive(*r)) {
-            return bad("measurement_noise_ms2", "must be positive and finite");
-        }
-        if !non_negative_finite(self.reference_accel_variance_m2_s4) {
-            return bad("reference_accel_variance_m2_s4", "must be finite and >= 0");
-        }
-        if !(self.acquisition_motion_exponent.is_finite()
-            && self.acquisition_motion_exponent >= T::one()
-            && self.acquisition_motion_exponent <= T::lit(4.0))
+        check::not_negative("min_accel_variance_m2_s4", self.min_accel_variance_m2_s4)?;
+        check::interval("min_peak", self.min_peak, Bound::WithinBelow(0.0, 1.0))?;
+        check::count_at_least("fixes_per_update", self.fixes_per_update.into(), 1)?;
+        check::positive_finite("max_imu_gap_s", self.max_imu_gap_s)?;
+        check::positive_finite("max_gps_gap_s", self.max_gps_gap_s)?;
+        check::not_negative("process_noise_ms2_per_s", self.process_noise_ms2_per_s)?;
+        for (field, r) in [
+            "measurement_noise_ms2[0]",
+            "measurement_noise_ms2[1]",
+            "measurement_noise_ms2[2]",
+        ]
+        .into_iter()
+        .zip(self.measurement_noise_ms2)
         {
-            return bad("acquisition_motion_exponent", "must be 1 to 4");
+            check::positive_finite(field, r)?;
         }
-        if !(non_negative_finite(self.reacquire_sigma) && positive(self.reacquire_after_s)) {
-            return bad(
-                "reacquire",
-                "sigma must be finite and >= 0, duration positive",
-            );
-        }
-        if !(positive(self.lock_std_s)
-            && non_negative_finite(self.acquire_sigma)
-            && non_negative_finite(self.lock_after_s)
-            && non_negative_finite(self.out_of_range_after_s))
-        {
-            return bad(
-                "acquisition",
-                "lock_std_s must be positive, the others finite and >= 0",
-            );
-        }
-        if !(non_negative_finite(self.innovation_window_s)
-            && positive(self.innovation_noise_scale)
-            && non_negative_finite(self.innovation_reacquire_sigma)
-            && positive(self.innovation_acquire_noise_scale))
-        {
-            return bad(
-                "innovation",
-                "window must be finite and >= 0, noise scales positive and finite",
-            );
-        }
-        self.fusion.validate()?;
+        check::not_negative(
+            "reference_accel_variance_m2_s4",
+            self.reference_accel_variance_m2_s4,
+        )?;
+        check::within(
+            "acquisition_motion_exponent",
+            self.acquisition_motion_exponent,
+            T::one(),
+            T::lit(4.0),
+        )?;
+        check::not_negative("reacquire_sigma", self.reacquire_sigma)?;
+        check::positive_finite("reacquire_after_s", self.reacquire_after_s)?;
+        check::positive_finite("lock_std_s", self.lock_std_s)?;
+        check::not_negative("acquire_sigma", self.acquire_sigma)?;
+        check::not_negative("lock_after_s", self.lock_after_s)?;
+        check::not_negative("out_of_range_after_s", self.out_of_range_after_s)?;
+        check::not_negative("innovation_window_s", self.innovation_window_s)?;
+        check::positive_finite("innovation_noise_scale", self.innovation_noise_scale)?;
+        check::not_negative(
+            "innovation_reacquire_sigma",
+            self.innovation_reacquire_sigma,
+        )?;
+        check::positive_finite(
+            "innovation_acquire_noise_scale",
+            self.innovation_acquire_noise_scale,
+        )?;
+        self.fusion
+            .validate()
+            .map_err(|e| e.within(Section::Fusion))?;
         let period_us = grid_period_us(self.correlation_rate_hz);
         let shift_lo = signed_grid_samples(self.fusion.delay_min_s, period_us);
         let shift_hi = signed_grid_samples(self.fusion.delay_max_s, period_us);
         let offset = usize::try_from(-shift_lo.min(0)).unwrap_or(usize::MAX);
         if offset > PENDING_GPS_SAMPLES / 2 {
-            return bad(
-                "fusion.delay_min_s",
-                "a negative delay may reach PENDING_GPS_SAMPLES / 2 grid samples",
-            );
+            // A negative delay reaches at most `PENDING_GPS_SAMPLES / 2`
+            // grid samples (the GPS samples that can wait).
+            let limit = -((PENDING_GPS_SAMPLES / 2) as f64) * period_us as f64 * 1e-6;
+            return Err(check::invalid(
+                "delay_min_s",
+                self.fusion.delay_min_s,
+                Bound::AtLeast(limit),
+            )
+            .within(Section::Fusion));
         }
         Ok(GridSizes {
             period_us,
@@ -394,7 +412,7 @@ mod tests {
         let after = |rate: f64, configured: f64| {
             DelayLoopConfig::<f64> {
                 reacquire_after_s: configured,
-                ..DelayLoopConfig::default()
+                ..DelayLoopConfig::clean_input()
             }
             .adapted_to_gps_rate(rate)
             .unwrap()
@@ -414,11 +432,13 @@ mod tests {
     #[test]
     fn default_capacities_fit_every_adapted_rate() {
         let mut delay_loop = DefaultDelayLoop::<f32>::BLANK;
-        delay_loop.configure(DelayLoopConfig::default()).unwrap();
+        delay_loop
+            .configure(DelayLoopConfig::clean_input())
+            .unwrap();
         for tenth_hz in 10..=200u16 {
             let rate = f32::from(tenth_hz) / 10.0;
             for (min, max) in [(0.0, 1.2), (-0.6, 0.6)] {
-                let mut config = DelayLoopConfig::<f32>::default();
+                let mut config = DelayLoopConfig::<f32>::clean_input();
                 config.fusion.delay_min_s = min;
                 config.fusion.delay_max_s = max;
                 config.fusion.initial_delay_s = 0.0;
@@ -427,7 +447,7 @@ mod tests {
                 assert!(fits.is_ok(), "{rate} Hz, {min} to {max} s: {fits:?}");
             }
         }
-        let mut config = DelayLoopConfig::<f32>::default();
+        let mut config = DelayLoopConfig::<f32>::clean_input();
         config.fusion.delay_max_s = 1.24;
         assert!(delay_loop.configure(config).is_err());
     }

@@ -49,7 +49,7 @@
 use nalgebra::Vector3;
 
 use super::ring::Ring;
-use crate::error::Error;
+use crate::error::{Error, check};
 use crate::scalar::{Scalar, zeros_const};
 
 /// The correlation peak of one NED axis.
@@ -208,27 +208,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         shift_min: usize,
         lags: usize,
     ) -> Result<(), Error> {
-        if !(2..=BUF).contains(&buffer_len) {
-            return Err(Error::InvalidConfig {
-                field: "correlation.buffer",
-                value: None,
-                bound: crate::error::Bound::Rule("buffer must hold 2 to BUF grid samples"),
-            });
-        }
-        if !(3..=LAGS).contains(&lags) {
-            return Err(Error::InvalidConfig {
-                field: "correlation.shift_window",
-                value: None,
-                bound: crate::error::Bound::Rule("shift window must hold 3 to LAGS grid samples"),
-            });
-        }
-        if buffer_len + shift_min + lags > HIST {
-            return Err(Error::InvalidConfig {
-                field: "correlation.history",
-                value: None,
-                bound: crate::error::Bound::Rule("HIST must exceed buffer + largest shift"),
-            });
-        }
+        check::count_within("buffer_len", buffer_len as u64, 2, BUF as u64)?;
+        check::count_within("lags", lags as u64, 3, LAGS as u64)?;
+        // The history holds the buffer and the largest shift.
+        let room = HIST.saturating_sub(shift_min + lags);
+        check::count_within("buffer_len", buffer_len as u64, 2, room as u64)?;
         self.buffer_len = buffer_len;
         self.shift_min = shift_min;
         self.lags = lags;

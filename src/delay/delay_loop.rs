@@ -3,6 +3,7 @@
 
 use nalgebra::Vector3;
 
+use super::config::GridSizes;
 use super::grid::{GpsToGrid, ImuToGrid, admit_sample};
 use super::matched::MatchedCorrelator;
 use super::tracking::drop_inconsistent_axes;
@@ -11,7 +12,7 @@ use super::{
     DelayUpdate, GainFusion, HorizonFix, InnovationDelay, MAX_APPLIED_DELAY_ERROR_S, SensorDelays,
     SlidingCorrelator,
 };
-use crate::error::Error;
+use crate::error::{Bound, Capacity, Error, Section, check};
 use crate::scalar::Scalar;
 use crate::sensors::GpsFix;
 use crate::zero_option::ZeroOption;
@@ -76,18 +77,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     pub fn configure(&mut self, config: DelayLoopConfig<T>) -> Result<(), Error> {
         self.configured = false;
         let sizes = config.sizes()?;
+        Self::check_capacities(&config, &sizes)?;
         self.correlator
             .configure(sizes.buffer_len, sizes.shift_min, sizes.lags)?;
-        if sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead > HIST {
-            return Err(Error::InvalidConfig {
-                field: "HIST",
-                value: Some(HIST as f64),
-                // The buffer, the largest shift and the GPS lead.
-                bound: crate::error::Bound::AtLeast(
-                    (sizes.buffer_len + sizes.shift_min + sizes.lags + sizes.lead) as f64,
-                ),
-            });
-        }
         let fusion = GainFusion::new(config.fusion)?;
         self.config = config;
         self.period_s = T::lit(sizes.period_us as f64 * 1e-6);
@@ -128,6 +120,80 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.innovation_window = ZeroOption::None;
         self.window_nis = T::zero();
         self.configured = true;
+        Ok(())
+    }
+
+    /// The sizes of `config` against the capacities, each error on the
+    /// field that sets the size, with the value the capacity allows: the
+    /// buffer (`BUF`), the delay range (`LAGS`, and at least 3 shifts) and
+    /// the IMU grid history (`HIST`: the buffer, the largest shift and the
+    /// lead of the IMU stream over the GPS one).
+    fn check_capacities(config: &DelayLoopConfig<T>, sizes: &GridSizes) -> Result<(), Error> {
+        let period_s = sizes.period_us as f64 * 1e-6;
+        let capacity = |field, value: T, limit: f64, at_least, of, samples: usize| {
+            Err(check::invalid(
+                field,
+                value,
+                Bound::Capacity {
+                    limit: limit as f32,
+                    at_least,
+                    of,
+                    samples: samples as u32,
+                },
+            ))
+        };
+        if sizes.buffer_len < 2 {
+            return Err(check::invalid(
+                "buffer_s",
+                config.buffer_s,
+                Bound::AtLeast(1.5 * period_s),
+            ));
+        }
+        if sizes.buffer_len > BUF {
+            let limit = BUF as f64 * period_s;
+            return capacity(
+                "buffer_s",
+                config.buffer_s,
+                limit,
+                false,
+                Capacity::LoopBuf,
+                BUF,
+            );
+        }
+        let delay_max = config.fusion.delay_max_s;
+        let delay_min = config.fusion.delay_min_s.as_f64();
+        if sizes.lags < 3 {
+            return Err(check::invalid(
+                "delay_max_s",
+                delay_max,
+                Bound::AtLeast(delay_min + 2.0 * period_s),
+            )
+            .within(Section::Fusion));
+        }
+        if sizes.lags > LAGS {
+            let limit = delay_min + (LAGS - 1) as f64 * period_s;
+            return capacity(
+                "delay_max_s",
+                delay_max,
+                limit,
+                false,
+                Capacity::LoopLags,
+                LAGS,
+            )
+            .map_err(|e: Error| e.within(Section::Fusion));
+        }
+        let others = sizes.shift_min + sizes.lags + sizes.lead;
+        if sizes.buffer_len + others > HIST {
+            let limit = (HIST as f64 - others as f64) * period_s;
+            return capacity(
+                "buffer_s",
+                config.buffer_s,
+                limit,
+                false,
+                Capacity::LoopHist,
+                HIST,
+            );
+        }
         Ok(())
     }
 
@@ -422,7 +488,7 @@ mod tests {
         let config = DelayLoopConfig::<T> {
             innovation_noise_scale: T::lit(3.0),
             innovation_acquire_noise_scale: T::lit(2.0),
-            ..DelayLoopConfig::default()
+            ..DelayLoopConfig::clean_input()
         };
         let window = (T::lit(0.2), T::lit(1e-4));
         // Bound: 2 sqrt((1e-4 + 1e-4) 6) = 69 ms.

@@ -48,7 +48,7 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
         const { assert!(TAPS >= 1, "a FIR needs at least one tap") };
         if !(sample_rate_hz.is_finite() && sample_rate_hz > T::zero()) {
             return Err(Error::InvalidConfig {
-                field: "fir.sample_rate_hz",
+                field: "fir.sample_rate_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be positive and finite"),
             });
@@ -58,7 +58,7 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
             && cutoff_hz < sample_rate_hz * T::lit(0.5))
         {
             return Err(Error::InvalidConfig {
-                field: "fir.cutoff_hz",
+                field: "fir.cutoff_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be positive and below half the sample rate"),
             });
@@ -104,7 +104,7 @@ impl<T: Scalar, const TAPS: usize> WhiteningFir<T, TAPS> {
         let tolerance = scale * T::lit(1e-6);
         if (0..TAPS / 2).any(|i| (coefficients[i] - coefficients[TAPS - 1 - i]).abs() > tolerance) {
             return Err(Error::InvalidConfig {
-                field: "fir.coefficients",
+                field: "fir.coefficients".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be symmetric (linear phase)"),
             });

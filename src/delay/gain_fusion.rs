@@ -46,7 +46,7 @@
 //! that range, so a long hover cannot make it grow without bound.
 
 use super::grid::{non_negative_finite, positive_finite};
-use crate::error::Error;
+use crate::error::{Bound, Error, check};
 use crate::scalar::Scalar;
 
 /// Number of fused measurements (one per NED axis).
@@ -105,33 +105,31 @@ impl<T: Scalar> GainFusionConfig<T> {
 
     /// Checks every field.
     pub fn validate(&self) -> Result<(), Error> {
-        let bad = |field, reason| {
-            Err(Error::InvalidConfig {
-                field,
-                value: None,
-                bound: crate::error::Bound::Rule(reason),
-            })
-        };
-        if !(positive_finite(self.gamma) && self.gamma <= T::one()) {
-            return bad("gfa.gamma", "must be in (0, 1]");
-        }
-        if !(self.delay_min_s.is_finite()
-            && self.delay_max_s.is_finite()
-            && self.delay_min_s < self.delay_max_s)
-        {
-            return bad("gfa.delay_range", "needs finite min < max");
-        }
-        if !(self.initial_delay_s >= self.delay_min_s && self.initial_delay_s <= self.delay_max_s) {
-            return bad("gfa.initial_delay_s", "must lie in the delay range");
-        }
-        if !positive_finite(self.initial_std_s) {
-            return bad("gfa.initial_std_s", "must be positive and finite");
-        }
-        if !(non_negative_finite(self.rate_std) && positive_finite(self.rate_time_constant_s)) {
-            return bad(
-                "gfa.rate",
-                "rate_std must be finite and >= 0, rate_time_constant_s positive and finite",
-            );
+        check::interval("gamma", self.gamma, Bound::AboveWithin(0.0, 1.0))?;
+        self.validate_range()?;
+        check::within(
+            "initial_delay_s",
+            self.initial_delay_s,
+            self.delay_min_s,
+            self.delay_max_s,
+        )?;
+        check::positive_finite("initial_std_s", self.initial_std_s)?;
+        check::not_negative("rate_std", self.rate_std)?;
+        check::positive_finite("rate_time_constant_s", self.rate_time_constant_s)?;
+        Ok(())
+    }
+
+    /// Checks the delay range: finite, `delay_min_s < delay_max_s` (an
+    /// error on `delay_min_s` names `delay_max_s`'s value as its bound).
+    pub(crate) fn validate_range(&self) -> Result<(), Error> {
+        let (min, max) = (self.delay_min_s, self.delay_max_s);
+        check::finite("delay_max_s", max)?;
+        if !(min.is_finite() && min < max) {
+            return Err(check::invalid(
+                "delay_min_s",
+                min,
+                Bound::Below(max.as_f64()),
+            ));
         }
         Ok(())
     }

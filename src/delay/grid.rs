@@ -27,7 +27,7 @@
 use nalgebra::Vector3;
 
 use super::ring::Ring;
-use crate::error::Error;
+use crate::error::{Error, check};
 use crate::scalar::{Scalar, all_finite, zeros_const};
 use crate::sensors::check_time;
 
@@ -350,31 +350,21 @@ pub(crate) fn validate_grid<T: Scalar>(
     smoothing_cutoff_hz: T,
     (extent_field, extent_s): (&'static str, T),
 ) -> Result<(), Error> {
-    let bad = |field, reason| {
-        Err(Error::InvalidConfig {
-            field,
-            value: None,
-            bound: crate::error::Bound::Rule(reason),
-        })
-    };
-    if !positive_finite(extent_s) {
-        return bad(extent_field, "must be positive and finite");
-    }
-    if !positive_finite(rate_hz) || rate_hz > T::lit(1e6) {
-        return bad(
-            "correlation_rate_hz",
-            "must be positive, finite, at most 1 MHz",
-        );
-    }
-    if !(1..=MAX_GPS_DIFF_SPAN).contains(&gps_diff_span) {
-        return bad("gps_diff_span", "must be 1 to MAX_GPS_DIFF_SPAN fixes");
-    }
-    if !positive_finite(smoothing_cutoff_hz) || smoothing_cutoff_hz >= rate_hz * T::lit(0.5) {
-        return bad(
-            "smoothing_cutoff_hz",
-            "must be positive and below half the correlation rate",
-        );
-    }
+    check::positive_finite(extent_field, extent_s)?;
+    check::positive_finite("correlation_rate_hz", rate_hz)?;
+    check::at_most("correlation_rate_hz", rate_hz, T::lit(1e6))?;
+    check::count_within(
+        "gps_diff_span",
+        gps_diff_span as u64,
+        1,
+        MAX_GPS_DIFF_SPAN as u64,
+    )?;
+    check::positive_finite("smoothing_cutoff_hz", smoothing_cutoff_hz)?;
+    check::below(
+        "smoothing_cutoff_hz",
+        smoothing_cutoff_hz,
+        rate_hz * T::lit(0.5),
+    )?;
     Ok(())
 }
 

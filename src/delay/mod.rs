@@ -120,7 +120,10 @@ mod status;
 mod tracking;
 
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
-pub use config::{DelayLoopConfig, MATCHED_BELOW_HZ, REACQUIRE_AFTER_FIXES};
+pub use config::{
+    CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4, CLEAN_INPUT_MIN_PEAK, DEFAULT_MIN_ACCEL_VARIANCE_M2_S4,
+    DEFAULT_MIN_PEAK, DelayLoopConfig, MATCHED_BELOW_HZ, REACQUIRE_AFTER_FIXES,
+};
 pub use correlation::{AxisPeak, PENDING_GPS_SAMPLES, SlidingCorrelator};
 pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
@@ -182,7 +185,7 @@ impl<T: Scalar> SensorDelays<T> {
 /// let velocity = |t: f64| {
 ///     Vector3::new(-3.0 / 1.3 * (1.3 * t).cos(), 2.0 / 0.7 * (0.7 * t).sin(), -(2.1 * t).cos() / 2.1)
 /// };
-/// let mut config = DelayLoopConfig::<f64>::default();
+/// let mut config = DelayLoopConfig::<f64>::clean_input();
 /// config.fusion.initial_delay_s = 0.4;
 /// let mut delay_loop = DefaultDelayLoop::<f64>::new(config)?;
 /// for k in 1..=4000u64 {

@@ -137,7 +137,7 @@ mod tests {
     /// window at 4x its predicted variance and a second at 0 give 2, not the
     /// first window's 4 (then forgetting at `dt / SIGMA_MATCH_TIME_S`).
     fn match_starts_as_a_mean<T: Scalar>() {
-        let mut config = DelayLoopConfig::<T>::default();
+        let mut config = DelayLoopConfig::<T>::clean_input();
         config.fusion.initial_std_s = T::lit(0.01);
         let mut delay_loop = DefaultDelayLoop::<T>::new(config).unwrap();
         assert!(delay_loop.locked);

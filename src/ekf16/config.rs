@@ -401,7 +401,7 @@ impl<T: Scalar> Ekf16Config<T> {
         check::count_at_least("align_min_samples", self.align_min_samples.into(), 1)?;
         if self.align_min_samples > self.align_window {
             return Err(Error::InvalidConfig {
-                field: "align_min_samples",
+                field: "align_min_samples".into(),
                 value: Some(f64::from(self.align_min_samples)),
                 bound: Bound::AtMost(f64::from(self.align_window)),
             });

@@ -2,23 +2,20 @@
 
 use crate::delay::DelayLoopConfig;
 use crate::ekf16::Ekf16Config;
-use crate::error::{Bound, Error, check};
+use crate::error::{Error, Section, check};
 use crate::scalar::Scalar;
 
 /// Taps of the low-pass whitening FIR when one is configured: group delay
 /// `(15 - 1) / 2 = 7` samples (7 ms at 1 kHz).
 pub const WHITENING_TAPS: usize = 15;
 
-/// The navigator's default `V_i` motion threshold, (m/s^2)^2 (the loop's
-/// own default is 0.25). The navigator's `a_fwd` carries its tilt error
-/// times g (1 deg: 0.17 m/s^2), which follows the motion; on an axis that
-/// barely moves, that error and the GPS noise place the correlation peak
-/// anywhere in the window with a high coefficient. On the simulator, an
-/// axis at 0.3-1 (m/s^2)^2 gave peaks from 0.5 to 0.97 s for a 0.2 s delay.
-pub const NAV_MIN_ACCEL_VARIANCE_M2_S4: f64 = 2.0;
+/// The navigator's `V_i` motion threshold, (m/s^2)^2: the delay loop's
+/// default, [`DEFAULT_MIN_ACCEL_VARIANCE_M2_S4`](crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4).
+pub const NAV_MIN_ACCEL_VARIANCE_M2_S4: f64 = crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4;
 
-/// The navigator's default `V_i` peak threshold (the loop's own is 0.5).
-pub const NAV_MIN_PEAK: f64 = 0.9;
+/// The navigator's `V_i` peak threshold: the delay loop's default,
+/// [`DEFAULT_MIN_PEAK`](crate::delay::DEFAULT_MIN_PEAK).
+pub const NAV_MIN_PEAK: f64 = crate::delay::DEFAULT_MIN_PEAK;
 
 /// How the GPS delay is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,18 +64,19 @@ impl<T: Scalar> WhiteningFilter<T> {
 
 /// Configuration of the delay-compensated navigator.
 ///
-/// Defaults: the [`Ekf16Config`] and [`DelayLoopConfig`] defaults except the
-/// loop's validity thresholds ([`NAV_MIN_ACCEL_VARIANCE_M2_S4`],
-/// [`NAV_MIN_PEAK`]), delay estimated from 0.2 s, 1 kHz IMU, no whitening (see the module docs for
-/// why), and a horizon that catches up at most twice as fast as real time.
+/// Defaults: the [`Ekf16Config`] and [`DelayLoopConfig`] defaults
+/// unchanged (one default per field), delay estimated from 0.2 s, 1 kHz
+/// IMU, no whitening (see the module docs for why), and a horizon that
+/// catches up at most twice as fast as real time.
 ///
 /// With the `serde` feature every config struct reads from a partial file
 /// (missing fields take their defaults) and refuses unknown fields by name.
-/// A nested table that is present starts from its own type's defaults: a
-/// `[delay_loop]` table gets [`DelayLoopConfig::default`]'s validity
-/// thresholds, not the navigator's [`NAV_MIN_ACCEL_VARIANCE_M2_S4`] and
-/// [`NAV_MIN_PEAK`]; set them in the table if you need them (the replay
-/// example merges a file over its own resolved config instead).
+/// A nested table that is present starts from its own type's defaults,
+/// which are the navigator's: a file that names a field changes that field
+/// only, however deep (`[delay_loop]` with `buffer_s = 4.0` leaves the
+/// loop's thresholds where [`NavConfig::default`] has them). An error of
+/// [`validate`](Self::validate) names the field by its path in the file
+/// (`delay_loop.fusion.gamma`), its value and its bound.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
@@ -149,11 +147,7 @@ impl<T: Scalar> Default for NavConfig<T> {
     fn default() -> Self {
         Self {
             ekf: Ekf16Config::default(),
-            delay_loop: DelayLoopConfig {
-                min_accel_variance_m2_s4: T::lit(NAV_MIN_ACCEL_VARIANCE_M2_S4),
-                min_peak: T::lit(NAV_MIN_PEAK),
-                ..DelayLoopConfig::default()
-            },
+            delay_loop: DelayLoopConfig::default(),
             mode: DelayMode::Estimated {
                 initial_s: T::lit(0.2),
             },
@@ -178,19 +172,15 @@ impl<T: Scalar> NavConfig<T> {
     /// is checked as [`loop_config`](Self::loop_config) builds it, so its
     /// `fusion.initial_delay_s` never matters.
     pub fn validate(&self) -> Result<(), Error> {
-        self.ekf.validate()?;
+        self.ekf.validate().map_err(|e| e.within(Section::Ekf))?;
         let (min, max) = (
             self.delay_loop.fusion.delay_min_s,
             self.delay_loop.fusion.delay_max_s,
         );
-        check::finite("delay_loop.fusion.delay_max_s", max)?;
-        if !(min.is_finite() && min < max) {
-            return Err(check::invalid(
-                "delay_loop.fusion.delay_min_s",
-                min,
-                Bound::Below(max.as_f64()),
-            ));
-        }
+        self.delay_loop
+            .fusion
+            .validate_range()
+            .map_err(|e| e.within(Section::Fusion).within(Section::DelayLoop))?;
         match self.mode {
             DelayMode::Estimated { initial_s } => {
                 check::within("mode.initial_s", initial_s, min, max)?;
@@ -199,7 +189,9 @@ impl<T: Scalar> NavConfig<T> {
                 check::within("mode.delay_s", delay_s, T::zero(), max)?;
             }
         }
-        self.loop_config().validate()?;
+        self.loop_config()
+            .validate()
+            .map_err(|e| e.within(Section::DelayLoop))?;
         check::positive_finite("imu_rate_hz", self.imu_rate_hz)?;
         for (field, filter) in [
             ("accel_whitening.cutoff_hz", self.accel_whitening),

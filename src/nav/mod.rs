@@ -171,7 +171,7 @@ use crate::delay::ring::Ring;
 use crate::delay::{DefaultDelayLoop, DelayUpdate};
 use crate::ekf16::delta::DeltaAccumulator;
 use crate::ekf16::{Ekf16, RefusalCounters};
-use crate::error::Error;
+use crate::error::{Bound, ConfigPath, Error, Section};
 use crate::estimate::{Estimate, Navigator};
 use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::Imu;
@@ -441,10 +441,15 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             + (HISTORY_ORDER + 2) as f64;
         if needed > HIST as f64 {
             return Err(Error::InvalidConfig {
-                field: "HIST",
+                field: ConfigPath::new("HIST"),
                 value: Some(HIST as f64),
                 // The largest delay at the IMU rate, with margins.
-                bound: crate::error::Bound::AtLeast(needed),
+                bound: Bound::History {
+                    needed: needed as u32,
+                    short_by: (needed as usize - HIST) as u32,
+                    delay_s: longest_s.as_f64() as f32,
+                    rate_hz: config.imu_rate_hz.as_f64() as f32,
+                },
             });
         }
         // The output ring spans `needed` samples with a stride per entry:
@@ -459,8 +464,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         } else {
             0
         };
-        self.ekf.configure(config.ekf)?;
-        self.delay_loop.configure(config.loop_config())?;
+        self.ekf
+            .configure(config.ekf)
+            .map_err(|e| e.within(Section::Ekf))?;
+        self.delay_loop
+            .configure(config.loop_config())
+            .map_err(|e| e.within(Section::DelayLoop))?;
         self.config = config;
         self.replaced_ekf_refusals = RefusalCounters::default();
         self.accel_whitening = accel_whitening;

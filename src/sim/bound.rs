@@ -192,7 +192,7 @@ impl BoundConfig {
         for (field, x) in fields {
             if !(x.is_finite() && x >= 0.0) {
                 return Err(crate::Error::InvalidConfig {
-                    field,
+                    field: field.into(),
                     value: Some(x),
                     bound: crate::error::Bound::NotNegative,
                 });

@@ -95,14 +95,14 @@ impl DelayProfile {
         use crate::Error::InvalidConfig;
         if !(self.initial_s.is_finite() && (MIN_DELAY_S..=MAX_DELAY_S).contains(&self.initial_s)) {
             return Err(InvalidConfig {
-                field: "delay.initial_s",
+                field: "delay.initial_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be in [-1, 1] s"),
             });
         }
         if !self.drift_s_per_s.is_finite() {
             return Err(InvalidConfig {
-                field: "delay.drift_s_per_s",
+                field: "delay.drift_s_per_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite"),
             });
@@ -113,7 +113,7 @@ impl DelayProfile {
             .any(|s| !s.at_s.is_finite() || !s.change_s.is_finite())
         {
             return Err(InvalidConfig {
-                field: "delay.steps",
+                field: "delay.steps".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("times and changes must be finite"),
             });
@@ -125,7 +125,7 @@ impl DelayProfile {
                 && r.duration_s > 0.0)
         }) {
             return Err(InvalidConfig {
-                field: "delay.ramps",
+                field: "delay.ramps".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "times and changes must be finite, durations positive",
@@ -134,7 +134,7 @@ impl DelayProfile {
         }
         if !(self.jitter_std_s.is_finite() && self.jitter_std_s >= 0.0) {
             return Err(InvalidConfig {
-                field: "delay.jitter_std_s",
+                field: "delay.jitter_std_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and non-negative"),
             });
@@ -143,7 +143,7 @@ impl DelayProfile {
             && self.jitter_uniform_half_width_s >= 0.0)
         {
             return Err(InvalidConfig {
-                field: "delay.jitter_uniform_half_width_s",
+                field: "delay.jitter_uniform_half_width_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and non-negative"),
             });

@@ -174,7 +174,7 @@ impl FaultySimulation {
         for fault in faults {
             let bad = |reason| {
                 Err(Error::InvalidConfig {
-                    field: "fault",
+                    field: "fault".into(),
                     value: None,
                     bound: crate::error::Bound::Rule(reason),
                 })

@@ -121,7 +121,7 @@ impl SimConfig {
         self.delay.validate()?;
         if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s < 1e6) {
             return Err(crate::Error::InvalidConfig {
-                field: "duration_s",
+                field: "duration_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be positive and below 1e6 s"),
             });
@@ -351,7 +351,7 @@ impl Simulation {
     pub fn with_imu_period_jitter(mut self, fraction: f64) -> Result<Self, crate::Error> {
         if !(0.0..1.0).contains(&fraction) {
             return Err(crate::Error::InvalidConfig {
-                field: "imu_period_jitter",
+                field: "imu_period_jitter".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be in [0, 1)"),
             });

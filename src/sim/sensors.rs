@@ -184,21 +184,21 @@ impl SensorConfig {
         use crate::Error::InvalidConfig;
         if !IMU_RATE_RANGE_HZ.contains(&self.imu_rate_hz) {
             return Err(InvalidConfig {
-                field: "imu_rate_hz",
+                field: "imu_rate_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be in 50-2000 Hz"),
             });
         }
         if !GPS_RATE_RANGE_HZ.contains(&self.gps_rate_hz) {
             return Err(InvalidConfig {
-                field: "gps_rate_hz",
+                field: "gps_rate_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be in 1-20 Hz"),
             });
         }
         if !(self.mag_rate_hz > 0.0 && self.mag_rate_hz <= self.imu_rate_hz) {
             return Err(InvalidConfig {
-                field: "mag_rate_hz",
+                field: "mag_rate_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be positive and at most the IMU rate"),
             });
@@ -223,7 +223,7 @@ impl SensorConfig {
         for (value, field) in non_negative {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(InvalidConfig {
-                    field,
+                    field: field.into(),
                     value: Some(value),
                     bound: crate::error::Bound::NotNegative,
                 });
@@ -231,14 +231,14 @@ impl SensorConfig {
         }
         if !self.origin.is_valid() {
             return Err(InvalidConfig {
-                field: "origin",
+                field: "origin".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("not a valid geodetic position"),
             });
         }
         if !self.declination_rad.is_finite() || !self.inclination_rad.is_finite() {
             return Err(InvalidConfig {
-                field: "inclination_rad",
+                field: "inclination_rad".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("field angles must be finite"),
             });
@@ -250,7 +250,7 @@ impl SensorConfig {
                 && h.accel_amplitude_m_s2.is_finite())
         }) {
             return Err(InvalidConfig {
-                field: "vibration",
+                field: "vibration".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "frequencies and amplitudes must be finite, frequencies non-negative",

@@ -195,7 +195,7 @@ impl TrajectoryConfig {
         let positive = |x: f64| x.is_finite() && x > 0.0;
         if !positive(self.accel_limit_m_s2) {
             return Err(InvalidConfig {
-                field: "accel_limit_m_s2",
+                field: "accel_limit_m_s2".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and positive"),
             });
@@ -206,7 +206,7 @@ impl TrajectoryConfig {
                 || !term.amplitude_m.iter().all(|a| a.is_finite())
             {
                 return Err(InvalidConfig {
-                    field: "path",
+                    field: "path".into(),
                     value: None,
                     bound: crate::error::Bound::Rule(
                         "periods must be positive, amplitudes and phases finite",
@@ -219,7 +219,7 @@ impl TrajectoryConfig {
             || 2.0 * self.taper_s > self.manoeuvre_period_s
         {
             return Err(InvalidConfig {
-                field: "manoeuvre_period_s",
+                field: "manoeuvre_period_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be positive and at least twice taper_s"),
             });
@@ -229,21 +229,21 @@ impl TrajectoryConfig {
             && self.chirp_end_hz > self.chirp_start_hz)
         {
             return Err(InvalidConfig {
-                field: "chirp_end_hz",
+                field: "chirp_end_hz".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("chirp frequencies must be positive and grow"),
             });
         }
         if !positive(self.start_ramp_s) {
             return Err(InvalidConfig {
-                field: "start_ramp_s",
+                field: "start_ramp_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and positive"),
             });
         }
         if !(self.amplitude_growth.is_finite() && self.amplitude_growth > 1.0) {
             return Err(InvalidConfig {
-                field: "amplitude_growth",
+                field: "amplitude_growth".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and above 1"),
             });
@@ -253,7 +253,7 @@ impl TrajectoryConfig {
             || !positive(self.yaw_period_s)
         {
             return Err(InvalidConfig {
-                field: "yaw_period_s",
+                field: "yaw_period_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("yaw terms must be finite, the period positive"),
             });
@@ -326,7 +326,7 @@ impl Trajectory {
         config.validate()?;
         if !(horizon_s.is_finite() && horizon_s > 0.0) {
             return Err(crate::Error::InvalidConfig {
-                field: "duration_s",
+                field: "duration_s".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite and positive"),
             });
@@ -354,7 +354,7 @@ impl Trajectory {
         let limit = traj.config.accel_limit_m_s2;
         if max_norm(0.0) >= limit {
             return Err(crate::Error::InvalidConfig {
-                field: "accel_limit_m_s2",
+                field: "accel_limit_m_s2".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("the slow path alone already reaches the limit"),
             });

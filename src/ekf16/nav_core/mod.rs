@@ -452,7 +452,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         config.validate()?;
         if extras.len() != N - NAV_STATES {
             return Err(Error::InvalidConfig {
-                field: "extra_states",
+                field: "extra_states".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "one description per state beyond the 16 navigation states",
@@ -468,7 +468,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         if !extras.iter().all(valid) {
             return Err(Error::InvalidConfig {
-                field: "extra_states",
+                field: "extra_states".into(),
                 value: None,
                 bound: crate::error::Bound::Rule(
                     "values must be finite, variances and intensities not negative",
@@ -528,7 +528,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         if !all_finite(p) || (0..N).any(|i| p[(i, i)] < T::zero()) {
             return Err(Error::InvalidConfig {
-                field: "initial covariance",
+                field: "initial covariance".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("must be finite with a non-negative diagonal"),
             });
