@@ -83,9 +83,31 @@ pub use delay::{
 pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
-pub use nav::{DelayCompensatedNav, DelayMode, NavConfig};
+pub use nav::{AlignmentState, DelayCompensatedNav, DelayMode, Health, NavConfig};
 pub use scalar::Scalar;
 pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
+
+/// What a program that feeds an estimator needs, in one import.
+///
+/// ```
+/// use delaynav::prelude::*;
+///
+/// let mut nav = DelayCompensatedNav::<f32>::new(NavConfig::default())?;
+/// let at_rest = Imu { t_us: 1_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.81) };
+/// nav.push_imu(&at_rest)?;
+/// let health: Health<f32> = nav.health();
+/// assert_eq!(health.alignment, AlignmentState::WaitingForImu);
+/// # Ok::<(), Error>(())
+/// ```
+pub mod prelude {
+    pub use crate::{
+        Aekf17Config, AlignmentState, AugmentedEkf17, DelayCompensatedNav, DelayLoopConfig,
+        DelayMode, DelayStatus, Ekf16, Ekf16Config, Error, Estimate, Geodetic, Gps, GpsFix,
+        GpsOutcome, GpsPosition, Health, Imu, ImuSample, Mag, MagOutcome, MagSample, NavConfig,
+        Navigator, Scalar,
+    };
+    pub use nalgebra::{UnitQuaternion, Vector3};
+}
 
 /// The README's examples, compiled and run as doctests so they stay true.
 #[cfg(doctest)]

@@ -305,3 +305,41 @@ macro_rules! health_tests {
 
 health_tests!(f64_nav, f64);
 health_tests!(f32_nav, f32);
+
+/// `Health` prints as one line a log or a ground station can show, every
+/// flag and the delay's status in it; the status types print in words.
+#[test]
+fn health_and_its_states_print_in_words() {
+    let nav = DelayCompensatedNav::<f64>::new(nav_config(
+        DelayMode::Estimated { initial_s: 0.2 },
+        1000.0,
+    ))
+    .unwrap();
+    assert_eq!(
+        nav.health().to_string(),
+        "waiting for IMU; valid: tilt no, heading no, velocity no, position no, delay no; \
+         delay 0.2000 s +- 0.2887 s (waiting for data, 0 measured updates); last reset: none"
+    );
+    let fixed =
+        DelayCompensatedNav::<f32>::new(nav_config(DelayMode::Fixed { delay_s: 0.15 }, 1000.0))
+            .unwrap();
+    assert!(
+        fixed
+            .health()
+            .to_string()
+            .contains("delay yes; delay 0.1500 s (fixed)")
+    );
+    assert_eq!(
+        AlignmentState::CarryingForward.to_string(),
+        "carrying forward"
+    );
+    let below = DelayStatus::BelowRange {
+        edge_s: 0.0f64,
+        peak: 0.874,
+    };
+    assert_eq!(
+        below.to_string(),
+        "below the range (edge 0.000 s, peak 0.87)"
+    );
+    assert_eq!(DelayStatus::<f32>::Locked.to_string(), "locked");
+}

@@ -92,3 +92,26 @@ impl<T: Scalar> DelayStatus<T> {
         )
     }
 }
+
+impl<T: Scalar> core::fmt::Display for DelayStatus<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::WaitingForData => f.write_str("waiting for data"),
+            Self::WaitingForMotion => f.write_str("waiting for motion"),
+            Self::Acquiring => f.write_str("acquiring"),
+            Self::Locked => f.write_str("locked"),
+            Self::BelowRange { edge_s, peak } => write!(
+                f,
+                "below the range (edge {:.3} s, peak {:.2})",
+                edge_s.as_f64(),
+                peak.as_f64()
+            ),
+            Self::AboveRange { edge_s, peak } => write!(
+                f,
+                "above the range (edge {:.3} s, peak {:.2})",
+                edge_s.as_f64(),
+                peak.as_f64()
+            ),
+        }
+    }
+}

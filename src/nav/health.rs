@@ -177,3 +177,76 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         Some((self.estimate()?, self.health()))
     }
 }
+
+impl core::fmt::Display for AlignmentState {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::NotConfigured => "not configured",
+            Self::WaitingForImu => "waiting for IMU",
+            Self::WaitingForGps => "waiting for GPS",
+            Self::CarryingForward => "carrying forward",
+            Self::Aligned => "aligned",
+        })
+    }
+}
+
+impl core::fmt::Display for ResetCause {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        use crate::ekf16::{GpsBlock, GpsResetCause};
+        match self {
+            Self::Requested => f.write_str("requested"),
+            Self::ImuGap => f.write_str("IMU gap"),
+            Self::Gps(r) => write!(
+                f,
+                "GPS {} {} (fix at {} us)",
+                match r.block {
+                    GpsBlock::Position => "position",
+                    GpsBlock::Velocity => "velocity",
+                },
+                match r.cause {
+                    GpsResetCause::Rejected => "rejected too long",
+                    GpsResetCause::Diverged => "diverged",
+                },
+                r.t_us
+            ),
+        }
+    }
+}
+
+/// One line: the alignment, each flag, the delay and its status, the last
+/// reset (the counters are in the fields and in `{:?}`), e.g.
+/// `aligned; valid: tilt yes, heading yes, velocity yes, position yes, delay yes; delay
+/// 0.2013 s +- 0.0042 s (locked, 57 measured updates); last reset: none`.
+impl<T: Scalar> core::fmt::Display for Health<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let yes = |b: bool| if b { "yes" } else { "no" };
+        write!(
+            f,
+            "{}; valid: tilt {}, heading {}, velocity {}, position {}, delay {}; delay {:.4} s",
+            self.alignment,
+            yes(self.tilt_valid),
+            yes(self.heading_valid),
+            yes(self.velocity_valid),
+            yes(self.position_valid),
+            yes(self.delay_valid),
+            self.delay.delay_s.as_f64(),
+        )?;
+        match self.delay.status {
+            Some(status) => write!(
+                f,
+                " +- {:.4} s ({status}, {} measured updates)",
+                self.delay.delay_std_s.as_f64(),
+                self.delay.valid_updates
+            )?,
+            None => f.write_str(" (fixed)")?,
+        }
+        match self.last_reset {
+            Some(ResetRecord {
+                t_us: Some(t_us),
+                cause,
+            }) => write!(f, "; last reset at {t_us} us: {cause}"),
+            Some(ResetRecord { t_us: None, cause }) => write!(f, "; last reset: {cause}"),
+            None => f.write_str("; last reset: none"),
+        }
+    }
+}
