@@ -33,7 +33,9 @@ use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use critical_section::Mutex;
 use delaynav::nav::{AlignmentState, HISTORY_ORDER, Health};
-use delaynav::{DelayCompensatedNav, DelayMode, Error, Estimate, Geodetic, NavConfig, Navigator};
+use delaynav::{
+    DelayCompensatedNav, DelayMode, DelayStatus, Error, Estimate, Geodetic, NavConfig, Navigator,
+};
 use world::{Glitches, Truth, World};
 
 /// The largest GPS delay the navigator must handle, s: the receiver's
@@ -253,6 +255,19 @@ fn is_finite(e: &Estimate<f32>) -> bool {
         && e.delay_s.is_some_and(f32::is_finite)
 }
 
+/// The delay loop's state in a few words.
+fn delay_status(h: &Health<f32>) -> &'static str {
+    match h.delay.status {
+        None => "fixed",
+        Some(DelayStatus::WaitingForData) => "waiting for data",
+        Some(DelayStatus::WaitingForMotion) => "waiting for motion",
+        Some(DelayStatus::Acquiring) => "acquiring",
+        Some(DelayStatus::Locked) => "locked",
+        Some(DelayStatus::BelowRange { .. }) => "below its range",
+        Some(DelayStatus::AboveRange { .. }) => "above its range",
+    }
+}
+
 fn status_line(s: &Snapshot) {
     let h = &s.health;
     let t_s = s.truth.t_us as f32 * 1e-6;
@@ -263,7 +278,7 @@ fn status_line(s: &Snapshot) {
             hprintln!(
                 "t={:5.1} s {:?}: position N {:7.2} E {:7.2} D {:5.2} m (error {:.2} m), \
                  velocity error {:.2} m/s, tilt error {:.2} deg, heading error {:.2} deg, \
-                 delay {:.3} s ({:?})",
+                 delay {:.3} s ({})",
                 t_s,
                 h.alignment,
                 p.x,
@@ -274,7 +289,7 @@ fn status_line(s: &Snapshot) {
                 err.tilt_deg,
                 err.heading_deg,
                 h.delay.delay_s,
-                h.delay.status,
+                delay_status(h),
             );
         }
         None => hprintln!("t={:5.1} s {:?}: no estimate yet", t_s, h.alignment),
@@ -325,10 +340,10 @@ fn finish(s: &Snapshot) -> ! {
         h.last_reset,
     );
     hprintln!(
-        "delay: {:.3} s +- {:.3} s ({:?}, {} valid updates); the receiver's latency is {:.3} s",
+        "delay: {:.3} s +- {:.3} s ({}, {} valid updates); the receiver's latency is {:.3} s",
         h.delay.delay_s,
         h.delay.delay_std_s,
-        h.delay.status,
+        delay_status(h),
         h.delay.valid_updates,
         world::GPS_DELAY_US as f32 * 1e-6
     );
