@@ -4,9 +4,11 @@
 //! linker lays the `static` out, so no stack holds a copy of the navigator
 //! (tens of KB) at any time. `configure` then validates the configuration
 //! and sets the navigator up where it lies, on a small stack. On a
-//! microcontroller the `static` would be a
-//! `critical_section::Mutex<RefCell<DelayCompensatedNav<f32, H>>>` (or a
-//! `cortex_m::singleton!`); here `std`'s `Mutex` stands in for it.
+//! microcontroller the `static` is a
+//! `critical_section::Mutex<RefCell<DelayCompensatedNav<f32, H>>>`, as in
+//! the firmware of `examples/embedded/`; here `std`'s `Mutex` stands in for
+//! it. A refused sample is routine (the navigator keeps its state and
+//! counts it in `health().refusals`): it is counted here, not returned.
 //!
 //! ```sh
 //! cargo run --release --example static_nav
@@ -19,8 +21,9 @@ use delaynav::{Error, Gps, GpsPosition, Imu, Navigator};
 use nalgebra::Vector3;
 
 /// History for a 0.5 s maximum delay at 1 kHz: `configure` checks that
-/// `ceil(0.5 s x 1000 Hz x 1.02) + 5 = 515 <= HIST`.
-const HIST: usize = 520;
+/// `ceil(0.5 s x 1000 Hz x 1.02) + 5 = 515 <= HIST` (README, "Sizing the
+/// history").
+const HIST: usize = 515;
 
 /// The navigator, blank until `main` configures it.
 static NAV: Mutex<DelayCompensatedNav<f32, HIST>> = Mutex::new(DelayCompensatedNav::BLANK);
@@ -37,32 +40,38 @@ fn main() -> Result<(), Error> {
     // Level and at rest, 1 kHz IMU; a 10 Hz GPS whose fixes arrive 0.2 s
     // late (at rest they all read the same).
     let gravity = Vector3::new(0.0, 0.0, -9.80665);
+    let mut refused = 0u32;
     for k in 1..=3000u64 {
         let t_us = k * 1000;
-        nav.push_imu(&Imu {
-            t_us,
-            gyro_rad_s: Vector3::zeros(),
-            accel_m_s2: gravity,
-        })?;
+        refused += u32::from(
+            nav.push_imu(&Imu {
+                t_us,
+                gyro_rad_s: Vector3::zeros(),
+                accel_m_s2: gravity,
+            })
+            .is_err(),
+        );
         if k % 100 == 0 {
-            nav.push_gps(&Gps {
+            let fix = nav.push_gps(&Gps {
                 t_us,
                 position: GpsPosition::Ned(Vector3::new(10.0, -5.0, 0.0)),
                 velocity_ned_m_s: Vector3::zeros(),
                 horizontal_accuracy_m: None,
                 vertical_accuracy_m: None,
                 speed_accuracy_m_s: None,
-            })?;
+            });
+            refused += u32::from(fix.is_err());
         }
     }
     let health = nav.health();
     let now = nav.estimate().ok_or(Error::NotInitialized)?;
     println!(
-        "navigator of {} bytes in a static, {:?}, position {:.2?} m at t = {} us",
+        "navigator of {} bytes in a static, {:?}, position {:.2?} m at t = {} us, {} samples refused",
         core::mem::size_of::<DelayCompensatedNav<f32, HIST>>(),
         health.alignment,
         now.position_ned_m.as_slice(),
         now.t_us,
+        refused,
     );
     // The same static configured again (a new flight): in place too.
     nav.configure(config)?;
