@@ -701,6 +701,8 @@ def parse_nav_memory(text):
     """The JSON of the memory test's printed lines (`name: N B`)."""
     members, doc = {}, {}
     for line in text.splitlines():
+        # The harness prints `test NAME ... ` before the test's first line.
+        line = re.sub(r"^test \S+ \.\.\. ", "", line)
         m = re.match(r"^(\s*)(.+?): (\d+) B$", line)
         if not m:
             continue
