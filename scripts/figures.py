@@ -703,6 +703,15 @@ def parse_nav_memory(text):
     for line in text.splitlines():
         # The harness prints `test NAME ... ` before the test's first line.
         line = re.sub(r"^test \S+ \.\.\. ", "", line)
+        # tests/nav_alloc.rs's memory_footprint: the default history and HIST=256.
+        m = re.match(r"^DelayCompensatedNav<f32>: (\d+) B, <f64>: (\d+) B$", line)
+        if m:
+            doc["default_hist_bytes"] = {"f32": int(m.group(1)), "f64": int(m.group(2))}
+            continue
+        m = re.match(r"^HIST=256: f32 (\d+) B, f64 (\d+) B$", line)
+        if m:
+            doc["hist_256_bytes"] = {"f32": int(m.group(1)), "f64": int(m.group(2))}
+            continue
         m = re.match(r"^(\s*)(.+?): (\d+) B$", line)
         if not m:
             continue
@@ -716,8 +725,10 @@ def parse_nav_memory(text):
         else:
             members[name] = value
     missing = {n for n, _ in NAV_MEMORY} - set(members)
-    if missing or "total_bytes" not in doc:
-        sys.exit(f"the memory test printed no figure for {sorted(missing) or 'the total'}")
+    for key in ["total_bytes", "default_hist_bytes", "hist_256_bytes"]:
+        missing |= set() if key in doc else {key}
+    if missing:
+        sys.exit(f"the memory tests printed no figure for {sorted(missing)}")
     doc["members_bytes"] = members
     return doc
 
@@ -731,6 +742,20 @@ def nav_memory():
              ["**total**", f"**{thousands(doc['total_bytes'])}**"]]
     return [*sh("cargo test --all-features --lib nav::memory -- --nocapture"), "",
             *table(["member", "B"], rows)]
+
+
+def nav_footprint():
+    doc = load("nav-memory.json")
+    m4 = load("cortex-m4.json")["estimators"]["nav_estimated_f32"]["size_of_bytes"]
+    d, h = doc["default_hist_bytes"], doc["hist_256_bytes"]
+    return table(["`HIST`", "use", "f32", "f64"], [
+        ["1100 (default)", "1 kHz, delay range 0-1 s", f"{thousands(d['f32'])} B",
+         f"{thousands(d['f64'])} B"],
+        ["530", "1 kHz, 0-0.5 s (the Cortex-M4 limits)",
+         f"{thousands(doc['total_bytes'])} B (Cortex-M4: {thousands(m4)})", "-"],
+        ["256", "200 Hz, 0-1 s (or 1 kHz, 0-0.24 s)", f"{thousands(h['f32'])} B",
+         f"{thousands(h['f64'])} B"],
+    ])
 
 
 RENDERERS = {
@@ -753,6 +778,7 @@ RENDERERS = {
     "flight-log-table7": flight_log_table7,
     "flight-log-step": flight_log_step,
     "nav-memory": nav_memory,
+    "nav-footprint": nav_footprint,
 }
 
 

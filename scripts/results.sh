@@ -80,10 +80,14 @@ step delay-suite-20 reproduce --delay-suite --seeds 20 --json "$out/delay-suite-
 for s in gps_rate imu_rate delay; do
   step "sweep-$s" reproduce --sweep "$s" --seeds 5 --json "$out/sweep-$s.json"
 done
-# The navigator's members, host `size_of` (src/nav/memory.rs prints them; parsed here).
+# The navigator's host `size_of`, member by member at HIST 530 (src/nav/memory.rs) and whole
+# at the default HIST and 256 (tests/nav_alloc.rs); their printed lines parsed here.
 nav_memory() {
-  cargo test --all-features --lib size_of_every_member_at_half_a_second -- --nocapture \
-    --test-threads 1 | python3 scripts/figures.py --parse-nav-memory "$out/nav-memory.json"
+  {
+    cargo test --all-features --lib size_of_every_member_at_half_a_second -- --nocapture \
+      --test-threads 1
+    cargo test --all-features --test nav_alloc memory_footprint -- --nocapture --test-threads 1
+  } | python3 scripts/figures.py --parse-nav-memory "$out/nav-memory.json"
 }
 step nav-memory nav_memory
 step bound-study reproduce --seeds 20 --bound-study --json "$out/bound-study.json"
