@@ -9,8 +9,8 @@
 # test of src/nav/memory.rs), then renders the markdown from the JSON with scripts/figures.py.
 # NAME is one of the step names printed (e.g. `--only faults,cortex-m4`); without it every step
 # runs. Each step prints its name and its time, and what it printed goes to
-# target/results/NAME.log; the whole takes about 17 min on a 2-core machine
-# (docs/results/README.md).
+# target/results/NAME.log; the whole takes 6.5 min on a 2-core machine once built, 15 min with
+# the first builds (docs/results/README.md).
 # `python3 scripts/figures.py --check` (CI) fails when the markdown differs from the JSON.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
