@@ -16,6 +16,10 @@ FIGURES = [
     ("instructions_per_imu_sample_max", "max"),
     ("size_of_bytes", "size_of"),
     ("stack_peak_bytes", "stack_peak"),
+    ("instructions_push_gps_mean", "gps_mean"),
+    ("instructions_push_gps_max", "gps_max"),
+    ("stack_peak_construct_bytes", "stack_peak_construct"),
+    ("stack_peak_push_bytes", "stack_peak_push"),
 ]
 
 
