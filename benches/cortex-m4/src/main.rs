@@ -406,9 +406,10 @@ fn measure<E: Subject>(estimator: &mut E, overhead: u32) -> Stats {
                 let estimate = black_box(estimator.estimate());
                 let t1 = now();
                 stats.final_estimate = estimate.is_some();
-                stats
-                    .estimate
-                    .add(elapsed(t0, t1).saturating_sub(overhead), stats.final_estimate);
+                stats.estimate.add(
+                    elapsed(t0, t1).saturating_sub(overhead),
+                    stats.final_estimate,
+                );
             }
             Event::Mag(_) => {
                 stats.mag.add(ticks, ok);
