@@ -4,6 +4,7 @@ timing fields (`us_per_imu_sample*`) aside: after `scripts/results.sh`, it tells
 moved or only the timings did.
 
     python3 scripts/results-diff.py [REV]
+    python3 scripts/results-diff.py --dirs A B NAME...   # A/NAME.json against B/NAME.json
 
 Prints the differences per file (at most 8 each) and exits 1 when there are any.
 """
@@ -49,5 +50,19 @@ def main(rev):
     return 1 if total else 0
 
 
+def dirs(a_dir, b_dir, names):
+    total = 0
+    for name in names:
+        out = []
+        walk(json.load(open(f"{a_dir}/{name}.json")), json.load(open(f"{b_dir}/{name}.json")), name, out)
+        print(f"{name}.json: {len(out)} differences")
+        for line in out[:20]:
+            print("  " + line)
+        total += len(out)
+    return 1 if total else 0
+
+
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--dirs":
+        sys.exit(dirs(sys.argv[2], sys.argv[3], sys.argv[4:]))
     sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "HEAD"))

@@ -30,31 +30,6 @@ for rev in "$base" "$new"; do
   done
   git -C "$root" worktree remove --force "$tree"
 done
-python3 - "$out/$(git -C "$root" rev-parse --short=12 "$base")" \
-  "$out/$(git -C "$root" rev-parse --short=12 "$new")" <<'PY'
-import json, sys
-a_dir, b_dir = sys.argv[1:3]
-def walk(a, b, path, out):
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in sorted(set(a) | set(b)):
-            if k.startswith('us_per_imu_sample'):
-                continue
-            if k not in a or k not in b:
-                out.append(f'{path}.{k}: only in one')
-            else:
-                walk(a[k], b[k], f'{path}.{k}', out)
-    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        for i, (x, y) in enumerate(zip(a, b)):
-            walk(x, y, f'{path}[{i}]', out)
-    elif a != b:
-        out.append(f'{path}: {a!r} vs {b!r}')
-total = 0
-for name in ('default', 'faults', 'delay', 'mc20'):
-    out = []
-    walk(json.load(open(f'{a_dir}/{name}.json')), json.load(open(f'{b_dir}/{name}.json')), name, out)
-    print(f'{name}.json: {len(out)} differences')
-    for line in out[:20]:
-        print('  ' + line)
-    total += len(out)
-sys.exit(1 if total else 0)
-PY
+python3 "$root/scripts/results-diff.py" --dirs \
+  "$out/$(git -C "$root" rev-parse --short=12 "$base")" \
+  "$out/$(git -C "$root" rev-parse --short=12 "$new")" default faults delay mc20
