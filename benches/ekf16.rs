@@ -9,7 +9,8 @@
 use criterion::measurement::WallTime;
 use criterion::{BatchSize, BenchmarkGroup, Criterion, criterion_group, criterion_main};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator,
+    Scalar,
 };
 use nalgebra::Vector3;
 use std::hint::black_box;
@@ -74,7 +75,7 @@ fn bench_precision<T: Scalar>(c: &mut Criterion, name: &str) {
     let mut group = c.benchmark_group(format!("ekf16_vs_aekf17_{name}"));
     let ekf = running(Ekf16::<T>::new(Ekf16Config::default()).unwrap());
     bench_filter(&mut group, "ekf16", &ekf);
-    let aekf = running(AugmentedEkf17::<T>::new(Aekf17Config::default()).unwrap());
+    let aekf = running(AugmentedEkf17::<T>::new(AugmentedEkf17Config::default()).unwrap());
     bench_filter(&mut group, "aekf17", &aekf);
     group.finish();
 }

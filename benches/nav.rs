@@ -2,7 +2,7 @@
 //! through `DelayCompensatedNav`, in f32 and f64, delay estimated.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::{Gps, GpsPosition, Imu, Navigator, Scalar};
 use nalgebra::Vector3;
 use std::hint::black_box;
@@ -36,11 +36,11 @@ fn gps<T: Scalar>(k: u64) -> Gps<T> {
 /// A navigator run for 8 s at 1 kHz with 10 Hz GPS (initialized, present
 /// ready, correlation buffer full).
 fn running<T: Scalar>() -> Box<DelayCompensatedNav<T>> {
-    let config = NavConfig {
+    let config = DelayCompensatedNavConfig {
         mode: DelayMode::Estimated {
             initial_s: T::lit(0.2),
         },
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     let mut nav = Box::new(DelayCompensatedNav::new(config).unwrap());
     for k in 1..=8000 {

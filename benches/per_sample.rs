@@ -47,8 +47,9 @@ use criterion::{
 use delaynav::estimate::{Estimate, GpsOutcome, MagOutcome};
 use delaynav::sim::{STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation, Truth};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, DelayCompensatedNav, DelayMode, Ekf16, Ekf16Config, Error, Gps,
-    GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample, NavConfig, Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, DelayCompensatedNavConfig,
+    DelayMode, Ekf16, Ekf16Config, Error, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample,
+    Navigator, Scalar,
 };
 use fusion_nav::FusionNav;
 use nalgebra::{SVector, UnitQuaternion, Vector3};
@@ -145,18 +146,18 @@ fn ekf_config<T: Scalar>(sim: &SimConfig) -> Ekf16Config<T> {
 }
 
 fn nav<T: Scalar>(sim: &SimConfig, mode: DelayMode<T>) -> DelayCompensatedNav<T> {
-    let mut config = NavConfig {
+    let mut config = DelayCompensatedNavConfig {
         ekf: ekf_config(sim),
         mode,
         imu_rate_hz: T::lit(sim.sensors.imu_rate_hz),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.delay_loop.fusion.delay_max_s = T::lit(MAX_DELAY_S);
     DelayCompensatedNav::new(config).expect("valid navigator config")
 }
 
 fn aekf17<T: Scalar>(sim: &SimConfig) -> AugmentedEkf17<T> {
-    let mut config = Aekf17Config::with_nav(ekf_config(sim));
+    let mut config = AugmentedEkf17Config::with_nav(ekf_config(sim));
     config.initial_delay_s = T::lit(sim.delay.initial_s);
     config.max_delay_s = T::lit(MAX_DELAY_S);
     AugmentedEkf17::new(config).expect("valid Aekf17 config")

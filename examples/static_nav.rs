@@ -16,7 +16,7 @@
 
 use std::sync::Mutex;
 
-use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::{Error, Gps, GpsPosition, Imu, Navigator};
 use nalgebra::Vector3;
 
@@ -32,7 +32,7 @@ fn main() -> Result<(), Error> {
     let mut nav = NAV.lock().expect("only main locks it");
     assert_eq!(nav.health().alignment, AlignmentState::NotConfigured);
 
-    let mut config = NavConfig::<f32>::default();
+    let mut config = DelayCompensatedNavConfig::<f32>::default();
     config.delay_loop.fusion.delay_max_s = 0.5;
     config.mode = DelayMode::Estimated { initial_s: 0.2 };
     nav.configure(config)?;

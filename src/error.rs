@@ -52,7 +52,7 @@ pub enum Error {
     InvalidConfig {
         /// The field, as a path from the configuration the caller passed
         /// (`delay_loop.fusion.delay_min_s`, `ekf.origin.lat_deg` for a
-        /// [`NavConfig`](crate::NavConfig)), whichever part validated it;
+        /// [`DelayCompensatedNavConfig`](crate::DelayCompensatedNavConfig)), whichever part validated it;
         /// compares equal to that text.
         field: ConfigPath,
         /// Its value (as `f64`; counts and flags too); `None` where the field
@@ -142,11 +142,11 @@ impl Error {
 pub(crate) enum Section {
     /// No segment (the unused slots of a path).
     Empty,
-    /// [`NavConfig::ekf`](crate::NavConfig::ekf).
+    /// [`DelayCompensatedNavConfig::ekf`](crate::DelayCompensatedNavConfig::ekf).
     Ekf,
-    /// [`Aekf17Config::nav`](crate::Aekf17Config::nav).
+    /// [`AugmentedEkf17Config::nav`](crate::AugmentedEkf17Config::nav).
     Nav,
-    /// [`NavConfig::delay_loop`](crate::NavConfig::delay_loop).
+    /// [`DelayCompensatedNavConfig::delay_loop`](crate::DelayCompensatedNavConfig::delay_loop).
     DelayLoop,
     /// [`DelayLoopConfig::fusion`](crate::DelayLoopConfig::fusion).
     Fusion,

@@ -76,14 +76,14 @@ mod zero_option;
 /// this re-export to get the version the crate was built with.
 pub use nalgebra;
 
-pub use aekf17::{Aekf17Config, AugmentedEkf17};
+pub use aekf17::{AugmentedEkf17, AugmentedEkf17Config};
 pub use delay::{
     DefaultDelayLoop, DelayLoop, DelayLoopConfig, DelayStatus, DelayUpdate, SensorDelays,
 };
-pub use ekf16::{Ekf16, Ekf16Config, NavState, RefusalCounters};
+pub use ekf16::{Ekf16, Ekf16Config, FilterRefusals, NavState};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
-pub use nav::{AlignmentState, DelayCompensatedNav, DelayMode, Health, NavConfig};
+pub use nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Health};
 pub use scalar::Scalar;
 pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 
@@ -92,7 +92,7 @@ pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, M
 /// ```
 /// use delaynav::prelude::*;
 ///
-/// let mut nav = DelayCompensatedNav::<f32>::new(NavConfig::default())?;
+/// let mut nav = DelayCompensatedNav::<f32>::new(DelayCompensatedNavConfig::default())?;
 /// let at_rest = Imu { t_us: 1_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.81) };
 /// nav.push_imu(&at_rest)?;
 /// let health: Health<f32> = nav.health();
@@ -101,10 +101,10 @@ pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, M
 /// ```
 pub mod prelude {
     pub use crate::{
-        Aekf17Config, AlignmentState, AugmentedEkf17, DelayCompensatedNav, DelayLoopConfig,
-        DelayMode, DelayStatus, Ekf16, Ekf16Config, Error, Estimate, Geodetic, Gps, GpsFix,
-        GpsOutcome, GpsPosition, Health, Imu, ImuSample, Mag, MagOutcome, MagSample, NavConfig,
-        Navigator, Scalar,
+        AlignmentState, AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav,
+        DelayCompensatedNavConfig, DelayLoopConfig, DelayMode, DelayStatus, Ekf16, Ekf16Config,
+        Error, Estimate, Geodetic, Gps, GpsFix, GpsOutcome, GpsPosition, Health, Imu, ImuSample,
+        Mag, MagOutcome, MagSample, Navigator, Scalar,
     };
     pub use nalgebra::{UnitQuaternion, Vector3};
 }

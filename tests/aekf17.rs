@@ -8,8 +8,8 @@ use delaynav::aekf17::measurement::{
 use delaynav::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
 use delaynav::geo::{quaternion_from_euler, rotation_matrix};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Error, Geodetic, GpsOutcome, GpsPosition, Imu, Mag,
-    NavState, Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Error, Geodetic, GpsOutcome, GpsPosition, Imu,
+    Mag, NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, Vector3};
 
@@ -17,10 +17,10 @@ mod flight;
 use flight::*;
 
 /// The augmented filter configured like the 16-state tests' filter.
-fn aekf_config<T: Scalar>(initial_delay_s: f64) -> Aekf17Config<T> {
-    Aekf17Config {
+fn aekf_config<T: Scalar>(initial_delay_s: f64) -> AugmentedEkf17Config<T> {
+    AugmentedEkf17Config {
         initial_delay_s: T::lit(initial_delay_s),
-        ..Aekf17Config::with_nav(config())
+        ..AugmentedEkf17Config::with_nav(config())
     }
 }
 
@@ -222,7 +222,7 @@ macro_rules! aekf17_tests {
 
             #[test]
             fn without_horizontal_acceleration_the_delay_variance_does_not_collapse() {
-                let initial = Aekf17Config::<f64>::default().initial_delay_std_s;
+                let initial = AugmentedEkf17Config::<f64>::default().initial_delay_std_s;
                 // At rest the only "acceleration" is noise, below the
                 // gate (see the aekf17 module docs): the variance grows by
                 // the random walk and the estimate stays within its 3 sigma
@@ -257,7 +257,7 @@ macro_rules! aekf17_tests {
                     },
                     ..weaving(seconds)
                 };
-                let config = Aekf17Config {
+                let config = AugmentedEkf17Config {
                     delay_min_accel_m_s2: lit(min_accel),
                     ..aekf_config(true_delay)
                 };
@@ -509,35 +509,35 @@ macro_rules! aekf17_tests {
 
             #[test]
             fn config_validates_and_names_the_bad_delay_field() {
-                Aekf17Config::<T>::default().validate().unwrap();
-                let c = Aekf17Config::<T>::default();
-                let field_of = |bad: Aekf17Config<T>| match bad.validate() {
+                AugmentedEkf17Config::<T>::default().validate().unwrap();
+                let c = AugmentedEkf17Config::<T>::default();
+                let field_of = |bad: AugmentedEkf17Config<T>| match bad.validate() {
                     Err(Error::InvalidConfig { field, .. }) => field,
                     other => panic!("expected InvalidConfig, got {other:?}"),
                 };
                 assert_eq!(
-                    field_of(Aekf17Config {
+                    field_of(AugmentedEkf17Config {
                         max_delay_s: lit(0.0),
                         ..c
                     }),
                     "max_delay_s"
                 );
                 assert_eq!(
-                    field_of(Aekf17Config {
+                    field_of(AugmentedEkf17Config {
                         initial_delay_s: lit(2.0),
                         ..c
                     }),
                     "initial_delay_s"
                 );
                 assert_eq!(
-                    field_of(Aekf17Config {
+                    field_of(AugmentedEkf17Config {
                         initial_delay_std_s: lit(f64::NAN),
                         ..c
                     }),
                     "initial_delay_std_s"
                 );
                 assert_eq!(
-                    field_of(Aekf17Config {
+                    field_of(AugmentedEkf17Config {
                         delay_random_walk: lit(-1.0),
                         ..c
                     }),
@@ -546,10 +546,10 @@ macro_rules! aekf17_tests {
                 let mut nav = c.nav;
                 nav.gps_velocity_std_m_s = lit(0.0);
                 assert_eq!(
-                    field_of(Aekf17Config { nav, ..c }),
+                    field_of(AugmentedEkf17Config { nav, ..c }),
                     "nav.gps_velocity_std_m_s"
                 );
-                assert!(AugmentedEkf17::new(Aekf17Config { nav, ..c }).is_err());
+                assert!(AugmentedEkf17::new(AugmentedEkf17Config { nav, ..c }).is_err());
             }
 
             #[test]

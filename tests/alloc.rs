@@ -2,8 +2,8 @@
 //! a counting global allocator, armed per thread around the measured calls.
 
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Gps, GpsOutcome, GpsPosition, Imu, Mag,
-    MagOutcome, Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Gps, GpsOutcome, GpsPosition, Imu,
+    Mag, MagOutcome, Navigator, Scalar,
 };
 use nalgebra::Vector3;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -112,6 +112,6 @@ fn predict_and_updates_allocate_nothing() {
     // One test: both precisions in one thread.
     run(Ekf16::<f32>::new(Ekf16Config::default()).unwrap());
     run(Ekf16::<f64>::new(Ekf16Config::default()).unwrap());
-    run(AugmentedEkf17::<f32>::new(Aekf17Config::default()).unwrap());
-    run(AugmentedEkf17::<f64>::new(Aekf17Config::default()).unwrap());
+    run(AugmentedEkf17::<f32>::new(AugmentedEkf17Config::default()).unwrap());
+    run(AugmentedEkf17::<f64>::new(AugmentedEkf17Config::default()).unwrap());
 }

@@ -5,11 +5,11 @@ use delaynav::delay::{CalibrationConfig, DefaultCalibrator, GainFusionConfig};
 use delaynav::error::Bound;
 use delaynav::nav::WhiteningFilter;
 use delaynav::{
-    Aekf17Config, DefaultDelayLoop, DelayCompensatedNav, DelayLoopConfig, DelayMode, Ekf16Config,
-    Error, Geodetic, NavConfig, Scalar,
+    AugmentedEkf17Config, DefaultDelayLoop, DelayCompensatedNav, DelayCompensatedNavConfig,
+    DelayLoopConfig, DelayMode, Ekf16Config, Error, Geodetic, Scalar,
 };
 
-fn nav_error<T: Scalar>(config: NavConfig<T>) -> (Error, String) {
+fn nav_error<T: Scalar>(config: DelayCompensatedNavConfig<T>) -> (Error, String) {
     let e = config.validate().unwrap_err();
     (e, e.to_string())
 }
@@ -17,7 +17,7 @@ fn nav_error<T: Scalar>(config: NavConfig<T>) -> (Error, String) {
 fn messages<T: Scalar>() {
     let lit = T::lit;
     // delay_min > delay_max: named as the range, not as the start delay.
-    let mut c = NavConfig::<T>::default();
+    let mut c = DelayCompensatedNavConfig::<T>::default();
     c.delay_loop.fusion.delay_min_s = lit(0.5);
     c.delay_loop.fusion.delay_max_s = lit(0.4);
     let (e, text) = nav_error(c);
@@ -35,11 +35,11 @@ fn messages<T: Scalar>() {
     );
 
     // The start delay outside the range: its value and the range.
-    let c = NavConfig {
+    let c = DelayCompensatedNavConfig {
         mode: DelayMode::Estimated {
             initial_s: lit(0.5),
         },
-        ..NavConfig::<T>::default()
+        ..DelayCompensatedNavConfig::<T>::default()
     };
     let mut c = c;
     c.delay_loop.fusion.delay_max_s = lit(0.4);
@@ -50,7 +50,7 @@ fn messages<T: Scalar>() {
 
     // Latitude 95 deg is out of range, not "non-finite"; the path is the
     // one from the navigator's configuration.
-    let mut c = NavConfig::<T>::default();
+    let mut c = DelayCompensatedNavConfig::<T>::default();
     c.ekf.origin = Some(Geodetic {
         lat_deg: 95.0,
         lon_deg: 8.0,
@@ -81,9 +81,9 @@ fn messages<T: Scalar>() {
         "invalid configuration: `align_min_samples` = 300, must be <= 200"
     );
 
-    let c = Aekf17Config {
+    let c = AugmentedEkf17Config {
         initial_delay_s: lit(1.5),
-        ..Aekf17Config::<T>::default()
+        ..AugmentedEkf17Config::<T>::default()
     };
     assert_eq!(
         c.validate().unwrap_err().to_string(),
@@ -92,7 +92,7 @@ fn messages<T: Scalar>() {
 
     // The history capacity: its value, what it needs and why (the longest
     // delay times the IMU rate), and by how much to raise it.
-    let e = DelayCompensatedNav::<T, 512>::new(NavConfig::default()).unwrap_err();
+    let e = DelayCompensatedNav::<T, 512>::new(DelayCompensatedNavConfig::default()).unwrap_err();
     let Error::InvalidConfig {
         field,
         value,
@@ -128,11 +128,11 @@ fn messages_name_the_field_the_value_and_the_bound() {
 fn fixed_mode_below_the_loop_default<T: Scalar>() {
     // The loop's default start (0.2 s) lies outside this range; the loop is
     // off in Fixed mode and starts at the fixed delay instead.
-    let mut c = NavConfig::<T> {
+    let mut c = DelayCompensatedNavConfig::<T> {
         mode: DelayMode::Fixed {
             delay_s: T::lit(0.1),
         },
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     c.delay_loop.fusion.delay_max_s = T::lit(0.15);
     c.validate().unwrap();
@@ -158,9 +158,9 @@ fn fixed_mode_with_a_maximum_below_the_loop_default_start_is_valid() {
 #[test]
 fn the_start_delay_is_set_by_the_mode_only() {
     // The loop's own start is ignored by the navigator: the mode's wins.
-    let mut c = NavConfig::<f64> {
+    let mut c = DelayCompensatedNavConfig::<f64> {
         mode: DelayMode::Estimated { initial_s: 0.3 },
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     c.delay_loop.fusion.initial_delay_s = 0.9;
     c.validate().unwrap();
@@ -171,7 +171,7 @@ fn the_start_delay_is_set_by_the_mode_only() {
 
 /// The text of the error of `config` through `DelayCompensatedNav::new`
 /// (validation, then the capacities).
-fn nav_text<T: Scalar>(config: NavConfig<T>) -> String {
+fn nav_text<T: Scalar>(config: DelayCompensatedNavConfig<T>) -> String {
     DelayCompensatedNav::<T>::new(config)
         .err()
         .unwrap()
@@ -183,13 +183,13 @@ fn invalid(path_value_bound: &str) -> String {
 }
 
 /// Sets one bad value in a configuration.
-type Setter<T> = fn(&mut NavConfig<T>);
+type Setter<T> = fn(&mut DelayCompensatedNavConfig<T>);
 
 /// A representative bad value in each section of each configuration: the
 /// path as written in a file, the value and the bound.
 fn each_section<T: Scalar>() {
     let lit = T::lit;
-    // NavConfig: top level, a variant's field, a whitening filter, [ekf],
+    // DelayCompensatedNavConfig: top level, a variant's field, a whitening filter, [ekf],
     // [delay_loop] (checked by `validate` and by the loop's capacities),
     // [delay_loop.fusion].
     let cases: [(Setter<T>, &str); 9] = [
@@ -236,21 +236,21 @@ fn each_section<T: Scalar>() {
         ),
     ];
     for (set, expected) in cases {
-        let mut c = NavConfig::<T>::default();
+        let mut c = DelayCompensatedNavConfig::<T>::default();
         set(&mut c);
         assert_eq!(nav_text(c), invalid(expected));
     }
 
-    // Aekf17Config: its [nav] table and its own fields.
-    let mut c = Aekf17Config::<T>::default();
+    // AugmentedEkf17Config: its [nav] table and its own fields.
+    let mut c = AugmentedEkf17Config::<T>::default();
     c.nav.gyro_noise_density = lit(-1.0);
     assert_eq!(
         c.validate().unwrap_err().to_string(),
         invalid("`nav.gyro_noise_density` = -1, must be positive and finite")
     );
-    let c = Aekf17Config {
+    let c = AugmentedEkf17Config {
         delay_random_walk: lit(f64::INFINITY),
-        ..Aekf17Config::<T>::default()
+        ..AugmentedEkf17Config::<T>::default()
     };
     assert_eq!(
         c.validate().unwrap_err().to_string(),
@@ -332,7 +332,7 @@ fn each_section<T: Scalar>() {
 
 #[test]
 fn a_path_compares_equal_to_its_text_and_the_error_stays_small() {
-    let mut c = NavConfig::<f64>::default();
+    let mut c = DelayCompensatedNavConfig::<f64>::default();
     c.delay_loop.fusion.gamma = 2.0;
     let Err(Error::InvalidConfig { field, .. }) = c.validate() else {
         panic!("expected InvalidConfig")

@@ -8,7 +8,8 @@ use delaynav::delay::{
     DEFAULT_MIN_PEAK, GainFusionConfig,
 };
 use delaynav::{
-    Aekf17Config, DelayLoopConfig, DelayMode, Ekf16Config, NavConfig, Scalar, SensorDelays,
+    AugmentedEkf17Config, DelayCompensatedNavConfig, DelayLoopConfig, DelayMode, Ekf16Config,
+    Scalar, SensorDelays,
 };
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -19,10 +20,10 @@ fn parse<C: DeserializeOwned>(text: &str) -> Result<C, String> {
 }
 
 fn only_the_imu_rate<T: Scalar + DeserializeOwned>() {
-    let config: NavConfig<T> = parse("imu_rate_hz = 50.0\n").unwrap();
-    let expected = NavConfig {
+    let config: DelayCompensatedNavConfig<T> = parse("imu_rate_hz = 50.0\n").unwrap();
+    let expected = DelayCompensatedNavConfig {
         imu_rate_hz: T::lit(50.0),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     assert_eq!(config, expected);
     assert!(config.validate().is_ok());
@@ -46,8 +47,8 @@ delay_max_s = 0.6
 [mode.Fixed]
 delay_s = 0.25
 ";
-    let config: NavConfig<f64> = parse(text).unwrap();
-    let mut expected = NavConfig::<f64>::default();
+    let config: DelayCompensatedNavConfig<f64> = parse(text).unwrap();
+    let mut expected = DelayCompensatedNavConfig::<f64>::default();
     expected.ekf.gps_horizontal_std_m = 3.5;
     // A table that is present starts from its own type's defaults, which
     // are the navigator's: only the named field changes.
@@ -58,14 +59,17 @@ delay_s = 0.25
 
 #[test]
 fn an_empty_file_is_the_default_of_every_config() {
-    assert_eq!(parse::<NavConfig<f64>>("").unwrap(), NavConfig::default());
+    assert_eq!(
+        parse::<DelayCompensatedNavConfig<f64>>("").unwrap(),
+        DelayCompensatedNavConfig::default()
+    );
     assert_eq!(
         parse::<Ekf16Config<f32>>("").unwrap(),
         Ekf16Config::default()
     );
     assert_eq!(
-        parse::<Aekf17Config<f64>>("").unwrap(),
-        Aekf17Config::default()
+        parse::<AugmentedEkf17Config<f64>>("").unwrap(),
+        AugmentedEkf17Config::default()
     );
     assert_eq!(
         parse::<DelayLoopConfig<f64>>("").unwrap(),
@@ -92,10 +96,10 @@ fn a_misspelt_key_is_an_error_naming_it() {
         ),
         ("[mode.Estimated]\ninitial = 0.3\n", "initial"),
     ] {
-        let err = parse::<NavConfig<f64>>(text).unwrap_err();
+        let err = parse::<DelayCompensatedNavConfig<f64>>(text).unwrap_err();
         assert!(err.contains(key), "{text:?}: {err}");
     }
-    let err = parse::<Aekf17Config<f64>>("max_delay = 1.0\n").unwrap_err();
+    let err = parse::<AugmentedEkf17Config<f64>>("max_delay = 1.0\n").unwrap_err();
     assert!(err.contains("max_delay"), "{err}");
     let err = parse::<CalibrationConfig<f64>>("max_shift = 6.0\n").unwrap_err();
     assert!(err.contains("max_shift"), "{err}");
@@ -108,10 +112,10 @@ fn round_trip<C: Serialize + DeserializeOwned + PartialEq + core::fmt::Debug>(co
 
 #[test]
 fn the_written_form_reads_back_equal() {
-    let mut nav = NavConfig::<f64> {
+    let mut nav = DelayCompensatedNavConfig::<f64> {
         imu_rate_hz: 400.0,
         mode: DelayMode::Fixed { delay_s: 0.15 },
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     nav.ekf.origin = Some(delaynav::Geodetic {
         lat_deg: 47.4,
@@ -119,8 +123,8 @@ fn the_written_form_reads_back_equal() {
         alt_m: 400.0,
     });
     round_trip(nav);
-    round_trip(NavConfig::<f32>::default());
-    round_trip(Aekf17Config::<f64>::default());
+    round_trip(DelayCompensatedNavConfig::<f32>::default());
+    round_trip(AugmentedEkf17Config::<f64>::default());
     round_trip(CalibrationConfig::<f64>::default());
 }
 
@@ -205,9 +209,9 @@ where
     T: Scalar + Serialize + DeserializeOwned,
 {
     let counts = [
-        each_field_alone::<NavConfig<T>>(),
+        each_field_alone::<DelayCompensatedNavConfig<T>>(),
         each_field_alone::<Ekf16Config<T>>(),
-        each_field_alone::<Aekf17Config<T>>(),
+        each_field_alone::<AugmentedEkf17Config<T>>(),
         each_field_alone::<DelayLoopConfig<T>>(),
         each_field_alone::<GainFusionConfig<T>>(),
         each_field_alone::<CalibrationConfig<T>>(),
@@ -236,8 +240,8 @@ fn a_file_naming_one_field_changes_that_field_only() {
 
 #[test]
 fn the_issue_case_a_delay_loop_table_with_the_buffer_alone() {
-    let config: NavConfig<f64> = parse("[delay_loop]\nbuffer_s = 5.0\n").unwrap();
-    assert_eq!(config, NavConfig::default());
+    let config: DelayCompensatedNavConfig<f64> = parse("[delay_loop]\nbuffer_s = 5.0\n").unwrap();
+    assert_eq!(config, DelayCompensatedNavConfig::default());
     assert_eq!(
         config.delay_loop.min_accel_variance_m2_s4,
         DEFAULT_MIN_ACCEL_VARIANCE_M2_S4
@@ -248,26 +252,30 @@ fn the_issue_case_a_delay_loop_table_with_the_buffer_alone() {
 #[test]
 fn an_origin_table_sets_the_origin_and_needs_its_three_fields() {
     let text = "[ekf.origin]\nlat_deg = 47.0\nlon_deg = 8.5\nalt_m = 400.0\n";
-    let config: NavConfig<f32> = parse(text).unwrap();
-    let mut expected = NavConfig::default();
+    let config: DelayCompensatedNavConfig<f32> = parse(text).unwrap();
+    let mut expected = DelayCompensatedNavConfig::default();
     expected.ekf.origin = Some(delaynav::Geodetic {
         lat_deg: 47.0,
         lon_deg: 8.5,
         alt_m: 400.0,
     });
     assert_eq!(config, expected);
-    let err = parse::<NavConfig<f32>>("[ekf.origin]\nlat_deg = 47.0\n").unwrap_err();
+    let err =
+        parse::<DelayCompensatedNavConfig<f32>>("[ekf.origin]\nlat_deg = 47.0\n").unwrap_err();
     assert!(err.contains("lon_deg"), "{err}");
 }
 
 #[test]
 fn one_default_per_field() {
     // The navigator's nested configurations are their types' defaults.
-    let nav = NavConfig::<f64>::default();
+    let nav = DelayCompensatedNavConfig::<f64>::default();
     assert_eq!(nav.delay_loop, DelayLoopConfig::default());
     assert_eq!(nav.delay_loop.fusion, GainFusionConfig::default());
     assert_eq!(nav.ekf, Ekf16Config::default());
-    assert_eq!(Aekf17Config::<f64>::default().nav, Ekf16Config::default());
+    assert_eq!(
+        AugmentedEkf17Config::<f64>::default().nav,
+        Ekf16Config::default()
+    );
     // The validity thresholds the navigator has always run with; the clean
     // input preset keeps the values the loop alone had.
     assert_eq!(

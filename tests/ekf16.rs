@@ -11,7 +11,7 @@ use delaynav::geo::{
     tilt_compensated_heading, wrap_pi,
 };
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, FusionRecord, Geodetic, Gps,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Error, FusionRecord, Geodetic, Gps,
     GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, NavState, Navigator, Scalar,
 };
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -1353,8 +1353,8 @@ mod properties {
         fn arbitrary_finite_inputs_never_panic_or_produce_nan(inputs in proptest::collection::vec(input(), 1..200)) {
             run(Ekf16::<f32>::new(config()).unwrap(), &inputs)?;
             run(Ekf16::<f64>::new(config()).unwrap(), &inputs)?;
-            run(AugmentedEkf17::<f32>::new(Aekf17Config::with_nav(config())).unwrap(), &inputs)?;
-            run(AugmentedEkf17::<f64>::new(Aekf17Config::with_nav(config())).unwrap(), &inputs)?;
+            run(AugmentedEkf17::<f32>::new(AugmentedEkf17Config::with_nav(config())).unwrap(), &inputs)?;
+            run(AugmentedEkf17::<f64>::new(AugmentedEkf17Config::with_nav(config())).unwrap(), &inputs)?;
         }
     }
 }

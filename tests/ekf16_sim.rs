@@ -275,9 +275,9 @@ fn f32_covariances_stay_symmetric_psd_over_100k_simulated_steps() {
     };
     let filter = table3_filter::<f32>(&sim);
     let mut ekf = Ekf16::new(filter).unwrap();
-    let mut aekf = delaynav::AugmentedEkf17::new(delaynav::Aekf17Config {
+    let mut aekf = delaynav::AugmentedEkf17::new(delaynav::AugmentedEkf17Config {
         nav: filter,
-        ..delaynav::Aekf17Config::default()
+        ..delaynav::AugmentedEkf17Config::default()
     })
     .unwrap();
     let (mut steps, mut worst_16, mut worst_17) = (0u32, 0.0f64, 0.0f64);
@@ -326,7 +326,7 @@ fn f32_covariances_stay_symmetric_psd_over_100k_simulated_steps() {
 /// The navigator on the fault suite's `high` run (20 s) with `faults`, its
 /// EKF configured from the run's sensors: its health at the end.
 fn navigator_health(faults: &[delaynav::sim::Fault]) -> delaynav::nav::Health<f64> {
-    use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+    use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
     use delaynav::sim::FaultySimulation;
     use delaynav::sim::faults::base_config;
     let sim = SimConfig {
@@ -334,7 +334,7 @@ fn navigator_health(faults: &[delaynav::sim::Fault]) -> delaynav::nav::Health<f6
         ..base_config(1, 1.0)
     };
     let s = &sim.sensors;
-    let mut nav = DelayCompensatedNav::<f64>::new(NavConfig {
+    let mut nav = DelayCompensatedNav::<f64>::new(DelayCompensatedNavConfig {
         ekf: Ekf16Config {
             mag_inclination_rad: s.inclination_rad,
             mag_declination_rad: s.declination_rad,
@@ -346,7 +346,7 @@ fn navigator_health(faults: &[delaynav::sim::Fault]) -> delaynav::nav::Health<f6
         },
         mode: DelayMode::Estimated { initial_s: 0.2 },
         imu_rate_hz: s.imu_rate_hz,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     })
     .unwrap();
     for event in FaultySimulation::new(sim.clone(), faults).unwrap() {

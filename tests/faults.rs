@@ -4,7 +4,7 @@
 
 use delaynav::GpsPosition;
 use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::sim::faults::{
     BAD_ACCURACIES, FaultCase, FaultResult, Metric, OnTimeBackwards, Reference, base_config,
     evaluate, fault_suite, run_trace,
@@ -216,11 +216,11 @@ fn calibrated_start(base: &SimConfig) -> (f64, f64) {
 /// The suite's navigator (`proposed` of `reproduce`): the EKF configured from the run's
 /// sensors, the delay estimated from `start` (delay and sigma, s).
 fn nav(sim: &SimConfig, (delay_s, std_s): (f64, f64)) -> DelayCompensatedNav<f64> {
-    let mut config = NavConfig {
+    let mut config = DelayCompensatedNavConfig {
         ekf: sim.sensors.ekf16_config(),
         mode: DelayMode::Estimated { initial_s: delay_s },
         imu_rate_hz: sim.sensors.imu_rate_hz,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.delay_loop.fusion.initial_std_s = std_s;
     DelayCompensatedNav::new(config).unwrap()

@@ -10,10 +10,12 @@ mod common;
 use common::Motion;
 use common::flight::{Flight, FlightEvent, Suite, feed, fly, nav_config};
 use delaynav::nav::health::{GPS_STALE_US, HEADING_STALE_US};
-use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayMode, Health, NavConfig};
+use delaynav::nav::{
+    AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Health,
+};
 use delaynav::{DelayStatus, Navigator, Scalar};
 
-fn config<T: Scalar>(mode: DelayMode<T>) -> NavConfig<T> {
+fn config<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNavConfig<T> {
     nav_config(mode, 1000.0)
 }
 

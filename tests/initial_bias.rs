@@ -6,7 +6,8 @@ use delaynav::ekf16::state::{ACCEL_BIAS, GYRO_BIAS};
 use delaynav::geo::euler_from_quaternion;
 use delaynav::nalgebra::Vector3;
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Navigator,
+    Scalar,
 };
 
 const ACCEL_BIAS_M_S2: [f64; 3] = [0.3, -0.2, 0.1];
@@ -87,7 +88,7 @@ fn starts_from_the_calibration<T: Scalar>() {
     assert_eq!(plain.nav_state().unwrap().accel_bias_m_s2, Vector3::zeros());
 
     // The augmented filter starts from the same core.
-    let mut aekf = AugmentedEkf17::<T>::new(Aekf17Config::with_nav(calibrated())).unwrap();
+    let mut aekf = AugmentedEkf17::<T>::new(AugmentedEkf17Config::with_nav(calibrated())).unwrap();
     align(&mut aekf);
     assert!(tilt_rad(&aekf) < 1e-4);
 }

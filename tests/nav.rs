@@ -8,8 +8,8 @@ mod common;
 use common::Motion;
 use common::flight::{Flight, FlightEvent, State, Suite, feed, fly, nav_config as config};
 use delaynav::nav::{
-    AlignmentState, DelayCompensatedNav, DelayMode, NavConfig, ResetCause, ResetRecord,
-    WhiteningFilter,
+    AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, ResetCause,
+    ResetRecord, WhiteningFilter,
 };
 use delaynav::{
     DelayStatus, Error, Estimate, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator,
@@ -128,7 +128,7 @@ macro_rules! nav_tests {
                 assert!(nav.last_delay_update().is_none());
             }
 
-            /// `NavConfig::gps_noise_from_delay`: while the loop acquires
+            /// `DelayCompensatedNavConfig::gps_noise_from_delay`: while the loop acquires
             /// (a cold start, sigma 0.29 s while this flight's motion builds
             /// up, 0.04-0.14 s at 10-20 s) the horizon's GPS velocity
             /// innovations are widened by `sigma^2 a a'` (by half the
@@ -731,21 +731,21 @@ macro_rules! nav_tests {
 
             #[test]
             fn config_defaults_validate_and_bad_fields_are_named() {
-                let c = NavConfig::<T>::default();
+                let c = DelayCompensatedNavConfig::<T>::default();
                 c.validate().unwrap();
-                let field = |c: NavConfig<T>| match c.validate() {
+                let field = |c: DelayCompensatedNavConfig<T>| match c.validate() {
                     Err(Error::InvalidConfig { field, .. }) => field,
                     other => panic!("{other:?}"),
                 };
                 assert_eq!(
-                    field(NavConfig {
+                    field(DelayCompensatedNavConfig {
                         imu_rate_hz: T::lit(0.0),
                         ..c
                     }),
                     "imu_rate_hz"
                 );
                 assert_eq!(
-                    field(NavConfig {
+                    field(DelayCompensatedNavConfig {
                         mode: DelayMode::Fixed {
                             delay_s: T::lit(-0.1)
                         },
@@ -754,7 +754,7 @@ macro_rules! nav_tests {
                     "mode.delay_s"
                 );
                 assert_eq!(
-                    field(NavConfig {
+                    field(DelayCompensatedNavConfig {
                         mode: DelayMode::Estimated {
                             initial_s: T::lit(2.0)
                         },
@@ -763,7 +763,7 @@ macro_rules! nav_tests {
                     "mode.initial_s"
                 );
                 assert_eq!(
-                    field(NavConfig {
+                    field(DelayCompensatedNavConfig {
                         accel_whitening: WhiteningFilter::LowPass {
                             cutoff_hz: T::lit(600.0)
                         },
@@ -772,7 +772,7 @@ macro_rules! nav_tests {
                     "accel_whitening.cutoff_hz"
                 );
                 assert_eq!(
-                    field(NavConfig {
+                    field(DelayCompensatedNavConfig {
                         max_horizon_step_ratio: T::lit(0.5),
                         ..c
                     }),

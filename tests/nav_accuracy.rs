@@ -14,7 +14,9 @@
 
 use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
 use delaynav::sim::{Scenario, SimConfig, SimEvent, Simulation, tilt_heading_error_rad};
-use delaynav::{DelayCompensatedNav, DelayMode, Ekf16, NavConfig, Navigator, Scalar};
+use delaynav::{
+    DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Ekf16, Navigator, Scalar,
+};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 /// Margin over the published 20-seed means.
@@ -144,11 +146,11 @@ fn run(scenario: Scenario, seed: u64) -> (Figures, Figures) {
     let events: Vec<SimEvent> = Simulation::new(config.clone()).unwrap().collect();
     let ekf = config.sensors.ekf16_config::<f64>();
     let (delay_s, std_s) = calibrate(&config);
-    let mut nav = NavConfig {
+    let mut nav = DelayCompensatedNavConfig {
         ekf,
         mode: DelayMode::Estimated { initial_s: delay_s },
         imu_rate_hz: config.sensors.imu_rate_hz,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     nav.delay_loop.fusion.initial_std_s = std_s;
     let mut nav = DelayCompensatedNav::<f64>::new(nav).unwrap();

@@ -6,7 +6,7 @@ mod common;
 
 use common::Motion;
 use common::flight::{Flight, FlightEvent, Suite, feed, fly};
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::{Navigator, Scalar};
 
 #[path = "support/counting_alloc.rs"]
@@ -17,9 +17,9 @@ fn per_sample_path_does_not_allocate<T: Scalar>(mode: DelayMode<T>) {
     let flight = Flight::new(Motion::random(2, 6, 0.05, 0.5, [3.0, 3.0, 1.0]));
     let events = fly(&flight, &Suite::simulator(), 20.0, |_| 0.2, None);
     let mut nav = Box::new(
-        DelayCompensatedNav::<T>::new(NavConfig {
+        DelayCompensatedNav::<T>::new(DelayCompensatedNavConfig {
             mode,
-            ..NavConfig::default()
+            ..DelayCompensatedNavConfig::default()
         })
         .unwrap(),
     );

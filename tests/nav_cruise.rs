@@ -1,5 +1,5 @@
 //! A straight cruise from an in-flight start: the delay loop waits for
-//! motion the whole run, so `NavConfig::gps_noise_from_delay` keeps the GPS
+//! motion the whole run, so `DelayCompensatedNavConfig::gps_noise_from_delay` keeps the GPS
 //! position noise widened by `sigma_tau |v|` (5.8 m at 20 m/s and 0.29 s).
 //! What that costs the position, against the paper's navigator
 //! (docs/nav.md): `cargo test --release --features sim --test nav_cruise --
@@ -9,7 +9,7 @@ mod common;
 
 use common::Motion;
 use common::flight::{Flight, Suite, feed, fly};
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::{DelayStatus, Ekf16Config, Navigator, Scalar};
 
 fn run<T: Scalar>(widen: bool) -> (f64, f64, bool) {
@@ -25,7 +25,7 @@ fn run<T: Scalar>(widen: bool) -> (f64, f64, bool) {
         ..Flight::new(motion)
     };
     let suite = Suite::simulator();
-    let mut config = NavConfig::<T> {
+    let mut config = DelayCompensatedNavConfig::<T> {
         ekf: Ekf16Config {
             mag_inclination_rad: T::lit(common::flight::INCLINATION),
             mag_declination_rad: T::lit(common::flight::DECLINATION),
@@ -35,7 +35,7 @@ fn run<T: Scalar>(widen: bool) -> (f64, f64, bool) {
             initial_s: T::lit(0.1),
         },
         imu_rate_hz: T::lit(suite.imu_hz),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.gps_noise_from_delay = widen;
     let mut nav = DelayCompensatedNav::<T>::new(config).unwrap();

@@ -9,31 +9,31 @@ mod common;
 use common::Motion;
 use common::flight::{DECLINATION, Flight, FlightEvent, INCLINATION, Suite, feed, fly};
 use delaynav::delay::{DefaultDelayLoop, DelayLoopConfig};
-use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Estimate, Gps, GpsPosition, Imu, Mag,
-    Navigator, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Error, Estimate, Gps, GpsPosition,
+    Imu, Mag, Navigator, Scalar,
 };
 use nalgebra::Vector3;
 
 /// History for a 0.5 s range at 1 kHz (515 needed).
 const HIST: usize = 520;
 
-fn config<T: Scalar>(mode: DelayMode<T>) -> NavConfig<T> {
-    let mut config = NavConfig {
+fn config<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNavConfig<T> {
+    let mut config = DelayCompensatedNavConfig {
         ekf: Ekf16Config {
             mag_inclination_rad: T::lit(INCLINATION),
             mag_declination_rad: T::lit(DECLINATION),
             ..Ekf16Config::default()
         },
         mode,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.delay_loop.fusion.delay_max_s = T::lit(0.5);
     config
 }
 
-fn estimated<T: Scalar>() -> NavConfig<T> {
+fn estimated<T: Scalar>() -> DelayCompensatedNavConfig<T> {
     config(DelayMode::Estimated {
         initial_s: T::lit(0.15),
     })
@@ -253,9 +253,9 @@ fn filters_configure_equals_new<T: Scalar>() {
     assert_eq!(outcomes(&mut ekf, &events), reference);
     assert_eq!(ekf.refusals(), built.refusals());
 
-    let config = Aekf17Config {
+    let config = AugmentedEkf17Config {
         initial_delay_s: T::lit(0.2),
-        ..Aekf17Config::with_nav(nav)
+        ..AugmentedEkf17Config::with_nav(nav)
     };
     let mut built = AugmentedEkf17::new(config).unwrap();
     let reference = outcomes(&mut built, &events);

@@ -19,7 +19,7 @@
 //!   state vector and full covariance are finite;
 //! - every refusal of the call (an `Err`, a GPS block or a magnetometer
 //!   update not fused) raised the sum of the estimator's refusal counters by
-//!   at least one ([`RefusalCounters`]; for the navigator also
+//!   at least one ([`FilterRefusals`]; for the navigator also
 //!   [`NavRefusals`]);
 //! - a fix answered `GpsOutcome::Waiting` (held until the filter can align)
 //!   moved no GPS refusal counter: waiting is not a refusal.
@@ -43,10 +43,10 @@
 //! uses are `pub(crate)` for that.
 
 use delaynav::ekf16::state::StateVector;
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig, NavRefusals};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, NavRefusals};
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Error, Estimate, Geodetic, Gps, GpsOutcome,
-    GpsPosition, Imu, Mag, MagOutcome, Navigator, RefusalCounters, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Error, Estimate, FilterRefusals,
+    Geodetic, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator, Scalar,
 };
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
@@ -258,10 +258,10 @@ macro_rules! field_sum {
     }};
 }
 
-fn ekf_sum(c: &RefusalCounters) -> u64 {
+fn ekf_sum(c: &FilterRefusals) -> u64 {
     field_sum!(
         *c,
-        RefusalCounters {
+        FilterRefusals {
             imu_non_finite,
             imu_out_of_range,
             imu_time,
@@ -307,7 +307,7 @@ fn nav_sum(c: &NavRefusals) -> u64 {
     )
 }
 
-fn ekf_gps(c: &RefusalCounters) -> u64 {
+fn ekf_gps(c: &FilterRefusals) -> u64 {
     [
         c.gps_invalid,
         c.gps_time,
@@ -702,9 +702,9 @@ pub(crate) fn replay<T: Scalar, S: Subject<T>>(
 }
 
 fn nav<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNav<T> {
-    let config = NavConfig {
+    let config = DelayCompensatedNavConfig {
         mode,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     DelayCompensatedNav::new(config).expect("default configuration")
 }
@@ -724,7 +724,7 @@ macro_rules! machines {
                 Ekf16::new(Ekf16Config::default()).unwrap()
             }
             pub fn aekf17() -> AugmentedEkf17<$t> {
-                AugmentedEkf17::new(Aekf17Config::default()).unwrap()
+                AugmentedEkf17::new(AugmentedEkf17Config::default()).unwrap()
             }
 
             #[test]

@@ -1042,7 +1042,8 @@ fn run_every_estimator(
     let files = LogFiles::locate(&[dir], None, reader).unwrap();
     let ekf16 = log171_filter_config(&files, reader, options);
     let proposed = log171_proposed(ekf16);
-    let aekf17 = delaynav::AugmentedEkf17::new(delaynav::Aekf17Config::with_nav(ekf16)).unwrap();
+    let aekf17 =
+        delaynav::AugmentedEkf17::new(delaynav::AugmentedEkf17Config::with_nav(ekf16)).unwrap();
     let ekf16 = delaynav::Ekf16::new(ekf16).unwrap();
     vec![
         ("proposed", run_on(proposed, &files, reader, options)),
@@ -1073,10 +1074,10 @@ fn log171_filter_config(
 
 /// The delay-compensated navigator for log171 (its IMU runs at 50 Hz).
 fn log171_proposed(ekf: delaynav::Ekf16Config<f64>) -> delaynav::DelayCompensatedNav<f64> {
-    let config = delaynav::NavConfig {
+    let config = delaynav::DelayCompensatedNavConfig {
         ekf,
         imu_rate_hz: 50.0,
-        ..delaynav::NavConfig::default()
+        ..delaynav::DelayCompensatedNavConfig::default()
     };
     delaynav::DelayCompensatedNav::<f64>::new(config).unwrap()
 }
@@ -1247,10 +1248,10 @@ fn proposed_on_log171(
     options: &delaynav::replay::RunOptions,
 ) -> delaynav::replay::RunSummary {
     let files = LogFiles::locate(&[dir], None, reader).unwrap();
-    let mut config = delaynav::NavConfig {
+    let mut config = delaynav::DelayCompensatedNavConfig {
         ekf: log171_filter_config(&files, reader, options),
         imu_rate_hz: 50.0,
-        ..delaynav::NavConfig::default()
+        ..delaynav::DelayCompensatedNavConfig::default()
     };
     if adapt {
         let events = LogReader::<f64>::open(&files, &ReaderOptions::default()).unwrap();

@@ -5,8 +5,8 @@
 
 use delaynav::delay::DefaultCalibrator;
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, DefaultDelayLoop, DelayCompensatedNav, Ekf16, Ekf16Config, Error,
-    Estimate, NavConfig, Scalar,
+    AugmentedEkf17, AugmentedEkf17Config, DefaultDelayLoop, DelayCompensatedNav,
+    DelayCompensatedNavConfig, Ekf16, Ekf16Config, Error, Estimate, Scalar,
 };
 
 const fn send_sync<T: Send + Sync>() {}
@@ -17,9 +17,9 @@ const fn every_estimator<T: Scalar>() {
     send_sync::<AugmentedEkf17<T>>();
     send_sync::<DefaultDelayLoop<T>>();
     send_sync::<DefaultCalibrator<T>>();
-    send_sync::<NavConfig<T>>();
+    send_sync::<DelayCompensatedNavConfig<T>>();
     send_sync::<Ekf16Config<T>>();
-    send_sync::<Aekf17Config<T>>();
+    send_sync::<AugmentedEkf17Config<T>>();
     send_sync::<Estimate<T>>();
 }
 
@@ -29,7 +29,7 @@ const _: () = send_sync::<Error>();
 
 #[test]
 fn a_navigator_runs_on_another_thread() {
-    let nav = DelayCompensatedNav::<f32>::new(NavConfig::default()).unwrap();
+    let nav = DelayCompensatedNav::<f32>::new(DelayCompensatedNavConfig::default()).unwrap();
     let nav = std::thread::spawn(move || nav).join().unwrap();
     assert!(nav.delay_s() > 0.0);
 }

@@ -10,7 +10,8 @@ use delaynav::sim::{
     delay_bound_s, delay_ramp_bound_s, noise_floor, tilt_heading_error_rad, trajectory_bound,
 };
 use delaynav::{
-    DelayCompensatedNav, DelayMode, Ekf16Config, GpsPosition, Imu, Mag, NavConfig, Navigator,
+    DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Ekf16Config, GpsPosition, Imu, Mag,
+    Navigator,
 };
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
@@ -731,13 +732,13 @@ fn oracle_squared_errors(config: &SimConfig, events: &[SimEvent], skip_us: u64) 
             s.imu_rate_hz,
         )
     };
-    let mut nav = DelayCompensatedNav::<f64>::new(NavConfig {
+    let mut nav = DelayCompensatedNav::<f64>::new(DelayCompensatedNavConfig {
         ekf,
         mode: DelayMode::Fixed {
             delay_s: config.delay.initial_s,
         },
         imu_rate_hz: s.imu_rate_hz,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     })
     .unwrap();
     let mut sums = [0.0; 4];

@@ -1,32 +1,36 @@
 //! `--config F.toml` and `--print-config`: the navigator's configuration as a
 //! TOML file.
 //!
-//! The file is a [`NavConfig`], possibly partial: what it holds is merged
+//! The file is a [`DelayCompensatedNavConfig`], possibly partial: what it holds is merged
 //! over the configuration the replay derives from the log (IMU rate, noise,
 //! magnetic field), table by table, so `[ekf]` with one key changes that key
 //! only. Its `ekf` table configures every estimator (`aekf17` and `ekf16`
 //! run on the same `Ekf16Config`). An unknown key or a wrong type is an error
 //! naming the key and its line; the merged configuration is then validated.
 
-use delaynav::{DelayCompensatedNav, NavConfig};
+use delaynav::{DelayCompensatedNav, DelayCompensatedNavConfig};
 use std::path::Path;
 use toml::{Table, Value};
 
 type Failure = Box<dyn std::error::Error>;
 
 /// `defaults` with the file at `path` (if any) merged over them, validated.
-pub fn resolve(defaults: NavConfig<f64>, path: Option<&Path>) -> Result<NavConfig<f64>, Failure> {
+pub fn resolve(
+    defaults: DelayCompensatedNavConfig<f64>,
+    path: Option<&Path>,
+) -> Result<DelayCompensatedNavConfig<f64>, Failure> {
     let Some(path) = path else {
         return Ok(defaults);
     };
     let shown = path.display();
     let text = std::fs::read_to_string(path).map_err(|e| format!("--config {shown}: {e}"))?;
     // Read alone first: unknown keys and wrong types are reported with their line.
-    toml::from_str::<NavConfig<f64>>(&text).map_err(|e| format!("--config {shown}: {e}"))?;
+    toml::from_str::<DelayCompensatedNavConfig<f64>>(&text)
+        .map_err(|e| format!("--config {shown}: {e}"))?;
     let file: Table = toml::from_str(&text)?;
     let mut merged = Table::try_from(defaults)?;
     merge(&mut merged, file);
-    let mut config: NavConfig<f64> = Value::Table(merged)
+    let mut config: DelayCompensatedNavConfig<f64> = Value::Table(merged)
         .try_into()
         .map_err(|e| format!("--config {shown}: {e}"))?;
     config
@@ -41,7 +45,7 @@ pub fn resolve(defaults: NavConfig<f64>, path: Option<&Path>) -> Result<NavConfi
 }
 
 /// The configuration as TOML, as `--config` reads it back.
-pub fn to_toml(config: &NavConfig<f64>) -> Result<String, Failure> {
+pub fn to_toml(config: &DelayCompensatedNavConfig<f64>) -> Result<String, Failure> {
     Ok(toml::to_string(config)?)
 }
 
@@ -66,7 +70,10 @@ mod tests {
     use super::*;
     use delaynav::DelayMode;
 
-    fn with_file(text: &str, defaults: NavConfig<f64>) -> Result<NavConfig<f64>, String> {
+    fn with_file(
+        text: &str,
+        defaults: DelayCompensatedNavConfig<f64>,
+    ) -> Result<DelayCompensatedNavConfig<f64>, String> {
         let path = std::env::temp_dir().join(format!(
             "delaynav-config-{}-{}.toml",
             std::process::id(),
@@ -78,10 +85,10 @@ mod tests {
         result
     }
 
-    fn log_defaults() -> NavConfig<f64> {
-        let mut c = NavConfig {
+    fn log_defaults() -> DelayCompensatedNavConfig<f64> {
+        let mut c = DelayCompensatedNavConfig {
             imu_rate_hz: 400.0,
-            ..NavConfig::default()
+            ..DelayCompensatedNavConfig::default()
         };
         c.ekf.mag_declination_rad = 0.2;
         c
@@ -161,8 +168,12 @@ mod tests {
     fn a_table_naming_one_field_changes_that_field_only() {
         // Over the plain defaults too (no merge needed): the file of the
         // issue moved the navigator's validity thresholds.
-        let c = with_file("[delay_loop]\nbuffer_s = 4.0\n", NavConfig::default()).unwrap();
-        let mut expected = NavConfig::default();
+        let c = with_file(
+            "[delay_loop]\nbuffer_s = 4.0\n",
+            DelayCompensatedNavConfig::default(),
+        )
+        .unwrap();
+        let mut expected = DelayCompensatedNavConfig::default();
         expected.delay_loop.buffer_s = 4.0;
         assert_eq!(c, expected);
     }
@@ -171,7 +182,7 @@ mod tests {
     fn the_printed_config_reads_back_equal() {
         let text = to_toml(&log_defaults()).unwrap();
         assert_eq!(
-            with_file(&text, NavConfig::default()).unwrap(),
+            with_file(&text, DelayCompensatedNavConfig::default()).unwrap(),
             log_defaults()
         );
     }

@@ -26,8 +26,8 @@ use delaynav::replay::{
     dataflash::DataFlashLog, flight_window, inclination_at_rest, log_date, magnetic_model, replay,
 };
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, DelayCompensatedNav, Ekf16, Ekf16Config, Estimate, NavConfig,
-    Navigator, RefusalCounters,
+    AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, DelayCompensatedNavConfig, Ekf16,
+    Ekf16Config, Estimate, FilterRefusals, Navigator,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
@@ -160,7 +160,7 @@ const ESTIMATORS: &[Registered] = &[
         name: "aekf17",
         about: "17-state augmented EKF with the delay as a state (the paper's baseline)",
         run: |setup, out| {
-            let config = Aekf17Config::with_nav(setup.ekf16_config());
+            let config = AugmentedEkf17Config::with_nav(setup.ekf16_config());
             let mut nav = AugmentedEkf17::new(config)?;
             let summary = run_one(setup, out, "aekf17", &mut nav)?;
             let mut health = HealthSummary::of_filter(nav.refusals(), nav.last_gps_reset());
@@ -206,7 +206,7 @@ struct Setup {
     /// The filters' IMU noise model for this log.
     imu_noise: ImuNoise,
     /// The navigator's configuration: the log's, with `--config` merged over it.
-    nav: NavConfig<f64>,
+    nav: DelayCompensatedNavConfig<f64>,
     accel_bias_random_walk: f64,
     /// Median reported GPS accuracies (h m, v m, speed m/s), the filters'
     /// accuracies for fixes that report none.
@@ -226,10 +226,10 @@ impl Setup {
     /// The navigator's configuration for this log: defaults with the values
     /// derived from the log (IMU rate and noise, magnetic field, GPS rate and
     /// accuracy).
-    fn log_config(&self) -> Result<NavConfig<f64>, Failure> {
+    fn log_config(&self) -> Result<DelayCompensatedNavConfig<f64>, Failure> {
         let defaults = Ekf16Config::<f64>::default();
         let [h, v, speed] = self.gps_accuracy;
-        let mut config = NavConfig {
+        let mut config = DelayCompensatedNavConfig {
             ekf: Ekf16Config {
                 mag_inclination_rad: self.inclination_rad,
                 mag_declination_rad: self.declination_rad,
@@ -242,7 +242,7 @@ impl Setup {
                 ..defaults
             },
             imu_rate_hz: self.imu_rate_hz,
-            ..NavConfig::default()
+            ..DelayCompensatedNavConfig::default()
         };
         if let Some(rate) = self.gps_rate_hz {
             config.delay_loop = config.delay_loop.adapted_to_gps_rate(rate)?;
@@ -297,8 +297,8 @@ fn non_zero(list: Vec<(String, u64)>) -> Vec<(String, u64)> {
 }
 
 impl HealthSummary {
-    /// A filter's counters ([`RefusalCounters`]) and its last GPS reset.
-    fn of_filter(c: RefusalCounters, last: Option<GpsReset>) -> Self {
+    /// A filter's counters ([`FilterRefusals`]) and its last GPS reset.
+    fn of_filter(c: FilterRefusals, last: Option<GpsReset>) -> Self {
         Self {
             refused: non_zero(fields!(c; imu_non_finite, imu_out_of_range, imu_time,
                 imu_step_too_long, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
@@ -547,7 +547,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
     let measured = LogDefaults::measure(open()?, found.as_ref());
     let imu_rate_hz = measured
         .imu_rate_hz
-        .unwrap_or(NavConfig::<f64>::default().imu_rate_hz);
+        .unwrap_or(DelayCompensatedNavConfig::<f64>::default().imu_rate_hz);
     let gps_rate_hz = measured.gps_rate_hz.filter(|r| (1.0..=20.0).contains(r));
 
     // IMU noise: measured (never below the filters' defaults), flags override.
@@ -727,7 +727,7 @@ fn setup(args: &Args) -> Result<Setup, Failure> {
         gps_accuracy,
         derived,
         quiet: args.quiet,
-        nav: NavConfig::default(),
+        nav: DelayCompensatedNavConfig::default(),
     }
     .with_config_file(args.config.as_deref())
 }

@@ -26,7 +26,7 @@ use delaynav::sim::{
     DelayProfile, DelayRamp, DelayStep, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent,
     Simulation, delay_bound_s, delay_ramp_bound_s,
 };
-use delaynav::{Aekf17Config, AugmentedEkf17, Navigator};
+use delaynav::{AugmentedEkf17, AugmentedEkf17Config, Navigator};
 use nalgebra::Vector3;
 use serde_json::{Value, json};
 use std::sync::Mutex;
@@ -760,9 +760,9 @@ fn aekf17_hover_row(options: &SuiteOptions) -> Row {
 pub struct HoverSetup {
     /// Length of the hover, s [default: 60].
     pub duration_s: Option<f64>,
-    /// `Aekf17Config::delay_random_walk`.
+    /// `AugmentedEkf17Config::delay_random_walk`.
     pub delay_random_walk: Option<f64>,
-    /// `Aekf17Config::accel_smoothing_s`.
+    /// `AugmentedEkf17Config::accel_smoothing_s`.
     pub accel_smoothing_s: Option<f64>,
 }
 
@@ -772,7 +772,7 @@ fn aekf17_hover(seed: u64, setup: &HoverSetup) -> (SimConfig, AugmentedEkf17<f64
     if let Some(duration_s) = setup.duration_s {
         config.duration_s = duration_s;
     }
-    let mut aekf = Aekf17Config::with_nav(ekf16_config(&config));
+    let mut aekf = AugmentedEkf17Config::with_nav(ekf16_config(&config));
     aekf.initial_delay_s = 0.2;
     if let Some(q) = setup.delay_random_walk {
         aekf.delay_random_walk = q;

@@ -61,7 +61,7 @@ use delaynav::Navigator;
 use delaynav::delay::{CalibrationConfig, DefaultCalibrator};
 use delaynav::ekf16::state as ekf16_state;
 use delaynav::geo::wrap_pi;
-use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
 use delaynav::sensors::{Gps, GpsPosition, Imu, Mag};
 use delaynav::sim::Trajectory;
 use delaynav::sim::{BoundConfig, BoundMagnetometer, BoundRms, trajectory_bound};
@@ -69,7 +69,9 @@ use delaynav::sim::{
     DelayProfile, NoiseFloor, STANDARD_GRAVITY, Scenario, SimConfig, SimEvent, Simulation,
     csv::write_run, delay_bound_s, noise_floor, tilt_heading_error_rad,
 };
-use delaynav::{Aekf17Config, AugmentedEkf17, Ekf16, Ekf16Config, Estimate, GpsOutcome, Scalar};
+use delaynav::{
+    AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Estimate, GpsOutcome, Scalar,
+};
 use nalgebra::{Matrix6, Quaternion, SMatrix, UnitQuaternion, Vector3, Vector6};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
@@ -233,7 +235,7 @@ struct Args {
     #[arg(long)]
     bound_study: bool,
     /// Prediction rate of the navigator's horizon filter, Hz; 0 predicts at
-    /// every IMU sample [default: `NavConfig`'s].
+    /// every IMU sample [default: `DelayCompensatedNavConfig`'s].
     #[arg(long)]
     filter_rate_hz: Option<f64>,
     /// With the default run, --faults or --delay-suite: print every verdict
@@ -402,7 +404,7 @@ fn run_ekf16<T: Scalar>(s: &RunSetup) -> RunScore {
 }
 
 fn run_aekf17<T: Scalar>(s: &RunSetup) -> RunScore {
-    let mut config = Aekf17Config::with_nav(ekf16_config::<T>(&s.config));
+    let mut config = AugmentedEkf17Config::with_nav(ekf16_config::<T>(&s.config));
     config.initial_delay_s = T::lit(s.start.delay_s);
     if let Some(std) = s.start.std_s {
         config.initial_delay_std_s = T::lit(std);
@@ -653,12 +655,12 @@ fn nav_config<T: Scalar>(
     sim: &SimConfig,
     mode: DelayMode<T>,
     initial_std_s: Option<f64>,
-) -> NavConfig<T> {
-    let mut config = NavConfig {
+) -> DelayCompensatedNavConfig<T> {
+    let mut config = DelayCompensatedNavConfig {
         ekf: ekf16_config::<T>(sim),
         mode,
         imu_rate_hz: T::lit(sim.sensors.imu_rate_hz),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     if let Some(std) = initial_std_s {
         config.delay_loop.fusion.initial_std_s = T::lit(std);

@@ -30,7 +30,7 @@ use crate::scalar::Scalar;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
-pub struct Aekf17Config<T: Scalar> {
+pub struct AugmentedEkf17Config<T: Scalar> {
     /// The navigation filter shared with [`Ekf16`](crate::Ekf16).
     pub nav: Ekf16Config<T>,
     /// Initial GPS delay `tau`, seconds (within `[0, max_delay_s]`).
@@ -54,7 +54,7 @@ pub struct Aekf17Config<T: Scalar> {
     pub delay_min_accel_m_s2: T,
 }
 
-impl<T: Scalar> Aekf17Config<T> {
+impl<T: Scalar> AugmentedEkf17Config<T> {
     /// Every field zero (never valid): the configuration of a blank filter.
     pub(crate) const ZEROED: Self = Self {
         nav: Ekf16Config::ZEROED,
@@ -67,7 +67,7 @@ impl<T: Scalar> Aekf17Config<T> {
     };
 }
 
-impl<T: Scalar> Default for Aekf17Config<T> {
+impl<T: Scalar> Default for AugmentedEkf17Config<T> {
     fn default() -> Self {
         Self {
             nav: Ekf16Config::default(),
@@ -81,7 +81,7 @@ impl<T: Scalar> Default for Aekf17Config<T> {
     }
 }
 
-impl<T: Scalar> Aekf17Config<T> {
+impl<T: Scalar> AugmentedEkf17Config<T> {
     /// The defaults around a given navigation configuration.
     pub fn with_nav(nav: Ekf16Config<T>) -> Self {
         Self {

@@ -133,16 +133,16 @@
 //!
 //! # Bad input
 //! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
-//! leave the filter unchanged and are counted in [`RefusalCounters`].
+//! leave the filter unchanged and are counted in [`FilterRefusals`].
 
 pub mod config;
 pub mod measurement;
 
-pub use config::Aekf17Config;
+pub use config::AugmentedEkf17Config;
 
 use crate::ekf16::nav_core::{ExtraState, GpsBlock, GpsBlockModel, GpsMeasurement, NavCore};
 use crate::ekf16::state::{ACCEL_BIAS, NAV_STATES, StateVector, quaternion_of};
-use crate::ekf16::{NavState, RefusalCounters};
+use crate::ekf16::{FilterRefusals, NavState};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{LocalFrame, rotation_matrix};
@@ -155,10 +155,10 @@ use nalgebra::{Matrix3, Vector3};
 /// plus the GPS delay `tau` as a state.
 ///
 /// ```
-/// use delaynav::{Aekf17Config, AugmentedEkf17, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
+/// use delaynav::{AugmentedEkf17Config, AugmentedEkf17, Gps, GpsOutcome, GpsPosition, Imu, Navigator};
 /// use nalgebra::{Matrix3, Vector3};
 ///
-/// let config = Aekf17Config::<f64> { initial_delay_s: 0.2, ..Aekf17Config::default() };
+/// let config = AugmentedEkf17Config::<f64> { initial_delay_s: 0.2, ..AugmentedEkf17Config::default() };
 /// let mut aekf = AugmentedEkf17::new(config)?;
 /// for k in 0..100u64 {
 ///     let imu = Imu { t_us: k * 10_000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.80665) };
@@ -181,7 +181,7 @@ use nalgebra::{Matrix3, Vector3};
 #[derive(Debug, Clone)]
 pub struct AugmentedEkf17<T: Scalar> {
     core: NavCore<T, AUGMENTED_STATES>,
-    config: Aekf17Config<T>,
+    config: AugmentedEkf17Config<T>,
     delay_clamps: u32,
     delay_unobservable_fixes: u32,
     smoothed: Option<SmoothedAcceleration<T>>,
@@ -202,7 +202,7 @@ struct SmoothedAcceleration<T: Scalar> {
 }
 
 /// The delay state as the shared core describes an extra state.
-fn delay_extra_state<T: Scalar>(c: &Aekf17Config<T>) -> ExtraState<T> {
+fn delay_extra_state<T: Scalar>(c: &AugmentedEkf17Config<T>) -> ExtraState<T> {
     ExtraState {
         initial: c.initial_delay_s,
         initial_variance: c.initial_delay_std_s * c.initial_delay_std_s,
@@ -214,7 +214,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// An uninitialized filter; it initializes itself from the first GPS
     /// fix as [`Ekf16`](crate::Ekf16) does, with `tau` at its configured
     /// initial value. Fails when the configuration does not validate.
-    pub fn new(config: Aekf17Config<T>) -> Result<Self, Error> {
+    pub fn new(config: AugmentedEkf17Config<T>) -> Result<Self, Error> {
         let mut aekf = Self::BLANK;
         aekf.configure(config)?;
         Ok(aekf)
@@ -226,7 +226,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// succeeds.
     pub const BLANK: Self = Self {
         core: NavCore::BLANK,
-        config: Aekf17Config::ZEROED,
+        config: AugmentedEkf17Config::ZEROED,
         delay_clamps: 0,
         delay_unobservable_fixes: 0,
         smoothed: None,
@@ -235,7 +235,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// Validates `config` and (re)starts the filter with it in place, as
     /// [`new`](Self::new) would build it (counters included). On error the
     /// filter is left not configured: it refuses every sample.
-    pub fn configure(&mut self, config: Aekf17Config<T>) -> Result<(), Error> {
+    pub fn configure(&mut self, config: AugmentedEkf17Config<T>) -> Result<(), Error> {
         let configured = config.validate().and_then(|()| {
             self.core
                 .configure(config.nav, &[delay_extra_state(&config)])
@@ -262,7 +262,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
     /// [`Ekf16::from_state`](crate::Ekf16::from_state)); `tau` starts at its
     /// configured initial value and variance.
     pub fn from_state(
-        config: Aekf17Config<T>,
+        config: AugmentedEkf17Config<T>,
         t_us: u64,
         state: &NavState<T>,
         covariance_diagonal: &StateVector<T>,
@@ -294,7 +294,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
 
     /// The configuration (every field zero on a filter not configured: see
     /// [`is_configured`](Self::is_configured)).
-    pub fn config(&self) -> &Aekf17Config<T> {
+    pub fn config(&self) -> &AugmentedEkf17Config<T> {
         &self.config
     }
 
@@ -428,7 +428,7 @@ impl<T: Scalar> AugmentedEkf17<T> {
 /// state), a zero rate and the specific force of rest (`a = 0`).
 fn delayed_gps_model<T: Scalar>(
     core: &NavCore<T, AUGMENTED_STATES>,
-    config: &Aekf17Config<T>,
+    config: &AugmentedEkf17Config<T>,
     smoothed: Option<SmoothedAcceleration<T>>,
     block: GpsBlock,
     m: &GpsMeasurement<T>,

@@ -106,7 +106,7 @@ use state::{NAV_STATES, StateCovariance, StateVector};
 /// Counting is the only trace a refused sample leaves.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct RefusalCounters {
+pub struct FilterRefusals {
     /// IMU samples with a non-finite value.
     pub imu_non_finite: u32,
     /// IMU samples above the plausible range, or whose step would make the state non-finite.
@@ -149,7 +149,7 @@ pub struct RefusalCounters {
     pub gps_divergence_resets: u32,
 }
 
-impl RefusalCounters {
+impl FilterRefusals {
     /// Nothing counted (the `const` of [`Default::default`]).
     pub const ZERO: Self = Self {
         imu_non_finite: 0,

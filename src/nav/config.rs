@@ -27,7 +27,7 @@ pub enum DelayMode<T: Scalar> {
     Estimated {
         /// Initial delay, s: the one place the start delay is set (the
         /// navigator ignores `delay_loop.fusion.initial_delay_s`, see
-        /// [`NavConfig::loop_config`]).
+        /// [`DelayCompensatedNavConfig::loop_config`]).
         initial_s: T,
     },
     /// Known and constant (a calibrated receiver): the loop is off.
@@ -74,19 +74,19 @@ impl<T: Scalar> WhiteningFilter<T> {
 /// A nested table that is present starts from its own type's defaults,
 /// which are the navigator's: a file that names a field changes that field
 /// only, however deep (`[delay_loop]` with `buffer_s = 4.0` leaves the
-/// loop's thresholds where [`NavConfig::default`] has them). An error of
+/// loop's thresholds where [`DelayCompensatedNavConfig::default`] has them). An error of
 /// [`validate`](Self::validate) names the field by its path in the file
 /// (`delay_loop.fusion.gamma`), its value and its bound.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
-pub struct NavConfig<T: Scalar> {
+pub struct DelayCompensatedNavConfig<T: Scalar> {
     /// The 16-state EKF run at the delayed horizon.
     pub ekf: Ekf16Config<T>,
     /// The delay loop (used in [`DelayMode::Estimated`]); its
     /// `fusion.delay_min_s..=delay_max_s` bounds the delay in both modes. Its
     /// `fusion.initial_delay_s` is not read: the start delay is the mode's
-    /// ([`NavConfig::loop_config`]).
+    /// ([`DelayCompensatedNavConfig::loop_config`]).
     pub delay_loop: DelayLoopConfig<T>,
     /// Estimated or fixed delay.
     pub mode: DelayMode<T>,
@@ -126,7 +126,7 @@ pub struct NavConfig<T: Scalar> {
     pub gps_noise_from_delay: bool,
 }
 
-impl<T: Scalar> NavConfig<T> {
+impl<T: Scalar> DelayCompensatedNavConfig<T> {
     /// Every field zero (never valid): the configuration of
     /// [`DelayCompensatedNav::BLANK`](super::DelayCompensatedNav::BLANK).
     pub(crate) const ZEROED: Self = Self {
@@ -143,7 +143,7 @@ impl<T: Scalar> NavConfig<T> {
     };
 }
 
-impl<T: Scalar> Default for NavConfig<T> {
+impl<T: Scalar> Default for DelayCompensatedNavConfig<T> {
     fn default() -> Self {
         Self {
             ekf: Ekf16Config::default(),
@@ -162,7 +162,7 @@ impl<T: Scalar> Default for NavConfig<T> {
     }
 }
 
-impl<T: Scalar> NavConfig<T> {
+impl<T: Scalar> DelayCompensatedNavConfig<T> {
     /// Checks every field (the history capacity is checked by
     /// [`DelayCompensatedNav::new`](super::DelayCompensatedNav::new)); the
     /// first offending one is named in the error with its value and bound.

@@ -57,7 +57,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     }
 
     /// What the delay's uncertainty adds to the next fix's noise
-    /// ([`NavConfig::gps_noise_from_delay`]): the variance of the delay
+    /// ([`DelayCompensatedNavConfig::gps_noise_from_delay`]): the variance of the delay
     /// estimate, s^2, and the horizon's mean NED acceleration since the last
     /// fused fix (its prior velocity minus the velocity after that fix, over
     /// the time between: the IMU's alone, m/s^2; zero before a first fix).

@@ -16,7 +16,7 @@
 //! - **the last reset and its cause** ([`ResetRecord`]).
 //! - **refusals per sensor and reason**: the navigator's own
 //!   ([`NavRefusals`]) and the horizon EKF's
-//!   ([`RefusalCounters`]: gates, GPS resets).
+//!   ([`FilterRefusals`]: gates, GPS resets).
 //! - **the delay status** ([`DelayHealth`], with the loop's [`DelayStatus`]): filled from what the delay loop
 //!   exposes today (estimate, standard deviation, validity of the last
 //!   update's axes); a richer status from the loop (waiting for motion,
@@ -25,7 +25,7 @@
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
 use crate::ekf16::state::{POS, VEL};
-use crate::ekf16::{GpsReset, RefusalCounters};
+use crate::ekf16::{FilterRefusals, GpsReset};
 use crate::estimate::{Estimate, Navigator};
 use crate::scalar::Scalar;
 
@@ -127,7 +127,7 @@ pub struct Health<T: Scalar> {
     /// The navigator's own refusals.
     pub refusals: NavRefusals,
     /// The horizon EKF's refusals, gates and resets.
-    pub ekf_refusals: RefusalCounters,
+    pub ekf_refusals: FilterRefusals,
     /// The delay's status.
     pub delay: DelayHealth<T>,
 }

@@ -4,7 +4,7 @@
 //! shows, printed for docs/PERFORMANCE.md:
 //! `cargo test --lib nav::memory -- --nocapture`.
 
-use super::{DelayCompensatedNav, NavConfig};
+use super::{DelayCompensatedNav, DelayCompensatedNavConfig};
 use core::mem::size_of_val;
 
 /// The history at 1 kHz for 0.5 s, as `benches/cortex-m4` sizes it.
@@ -12,7 +12,7 @@ const HIST: usize = 530;
 
 #[test]
 fn size_of_every_member_at_half_a_second() {
-    let mut config = NavConfig::<f32>::default();
+    let mut config = DelayCompensatedNavConfig::<f32>::default();
     config.delay_loop.fusion.delay_max_s = 0.5;
     let nav = Box::new(DelayCompensatedNav::<f32, HIST>::new(config).unwrap());
     let members = [

@@ -19,7 +19,7 @@
 //! | file | its one job |
 //! |---|---|
 //! | `mod.rs` | the navigator's state, its construction (`new`, `BLANK`, `configure`) and read-outs |
-//! | `config.rs` | [`NavConfig`], [`DelayMode`], [`WhiteningFilter`] and their validation |
+//! | `config.rs` | [`DelayCompensatedNavConfig`], [`DelayMode`], [`WhiteningFilter`] and their validation |
 //! | `input.rs` | every sample checked, timed and counted; the steps of one IMU sample, a fix, a magnetometer sample |
 //! | `timeline.rs` | the history's sample times (reads by time) and each stream's clock checks |
 //! | `whitening.rs` | the optional whitening FIR of each IMU stream and its group delay |
@@ -162,7 +162,7 @@ mod whitening;
 #[cfg(test)]
 mod memory;
 
-pub use config::{DelayMode, NavConfig, WHITENING_TAPS, WhiteningFilter};
+pub use config::{DelayCompensatedNavConfig, DelayMode, WHITENING_TAPS, WhiteningFilter};
 pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
 pub use refusals::{NavRefusals, NavWork};
 
@@ -170,7 +170,7 @@ use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
 use crate::delay::{DefaultDelayLoop, DelayUpdate};
 use crate::ekf16::delta::DeltaAccumulator;
-use crate::ekf16::{Ekf16, RefusalCounters};
+use crate::ekf16::{Ekf16, FilterRefusals};
 use crate::error::{Bound, ConfigPath, Error, Section};
 use crate::estimate::{Estimate, Navigator};
 use crate::scalar::{Scalar, zeros_const};
@@ -230,12 +230,12 @@ pub const DELAY_UPDATE_MAX_WAIT: u32 = 3;
 /// module docs. `HIST` is the IMU history in samples.
 ///
 /// ```
-/// use delaynav::nav::{DelayCompensatedNav, DelayMode, NavConfig};
+/// use delaynav::nav::{DelayCompensatedNav, DelayMode, DelayCompensatedNavConfig};
 /// use delaynav::{Gps, GpsPosition, Imu, Navigator};
 /// use nalgebra::Vector3;
 ///
 /// // At rest at 100 Hz; the GPS is 0.1 s late (a calibrated receiver).
-/// let mut config = NavConfig::<f64>::default();
+/// let mut config = DelayCompensatedNavConfig::<f64>::default();
 /// config.imu_rate_hz = 100.0;
 /// config.mode = DelayMode::Fixed { delay_s: 0.1 };
 /// let mut nav = DelayCompensatedNav::<f64, 128>::new(config)?;
@@ -263,10 +263,10 @@ pub const DELAY_UPDATE_MAX_WAIT: u32 = 3;
 /// ```
 #[derive(Debug, Clone)]
 pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
-    config: NavConfig<T>,
+    config: DelayCompensatedNavConfig<T>,
     ekf: Ekf16<T>,
     /// Counters of the horizon filters `ekf` replaced.
-    replaced_ekf_refusals: RefusalCounters,
+    replaced_ekf_refusals: FilterRefusals,
     delay_loop: DefaultDelayLoop<T>,
     accel_whitening: Whitening<T>,
     gyro_whitening: Whitening<T>,
@@ -331,7 +331,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// what you want. On a microcontroller, where the navigator is tens of
     /// KB, start from [`BLANK`](Self::BLANK) in its final place (a
     /// `static`) and [`configure`](Self::configure) it there.
-    pub fn new(config: NavConfig<T>) -> Result<Self, Error> {
+    pub fn new(config: DelayCompensatedNavConfig<T>) -> Result<Self, Error> {
         let mut nav = Self::BLANK;
         nav.configure(config)?;
         Ok(nav)
@@ -348,7 +348,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     ///
     /// ```
     /// use core::cell::RefCell;
-    /// use delaynav::nav::{AlignmentState, DelayCompensatedNav, NavConfig};
+    /// use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig};
     /// use delaynav::{Error, Imu, Navigator};
     /// use nalgebra::Vector3;
     ///
@@ -362,7 +362,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     ///     let imu = Imu { t_us: 1000, gyro_rad_s: Vector3::zeros(), accel_m_s2: Vector3::new(0.0, 0.0, -9.8) };
     ///     assert_eq!(nav.push_imu(&imu), Err(Error::NotConfigured));
     ///     assert_eq!(nav.health().alignment, AlignmentState::NotConfigured);
-    ///     let mut config = NavConfig::default();
+    ///     let mut config = DelayCompensatedNavConfig::default();
     ///     config.delay_loop.fusion.delay_max_s = 0.5;
     ///     nav.configure(config)?; // in place: a small stack
     ///     nav.push_imu(&imu)?;
@@ -372,9 +372,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// # Ok::<(), Error>(())
     /// ```
     pub const BLANK: Self = Self {
-        config: NavConfig::ZEROED,
+        config: DelayCompensatedNavConfig::ZEROED,
         ekf: Ekf16::BLANK,
-        replaced_ekf_refusals: RefusalCounters::ZERO,
+        replaced_ekf_refusals: FilterRefusals::ZERO,
         delay_loop: DefaultDelayLoop::BLANK,
         accel_whitening: Whitening::BLANK,
         gyro_whitening: Whitening::BLANK,
@@ -426,7 +426,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// does not fit `HIST`) the navigator is left not configured: it
     /// refuses every sample and gives no estimate until a `configure`
     /// succeeds.
-    pub fn configure(&mut self, config: NavConfig<T>) -> Result<(), Error> {
+    pub fn configure(&mut self, config: DelayCompensatedNavConfig<T>) -> Result<(), Error> {
         self.configured = false;
         config.validate()?;
         let accel_whitening = Whitening::new(config.accel_whitening, config.imu_rate_hz)?;
@@ -471,7 +471,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             .configure(config.loop_config())
             .map_err(|e| e.within(Section::DelayLoop))?;
         self.config = config;
-        self.replaced_ekf_refusals = RefusalCounters::default();
+        self.replaced_ekf_refusals = FilterRefusals::default();
         self.accel_whitening = accel_whitening;
         self.gyro_whitening = gyro_whitening;
         self.history.clear();
@@ -505,7 +505,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
 
     /// The configuration (every field zero on a navigator not configured:
     /// see [`is_configured`](Self::is_configured)).
-    pub fn config(&self) -> &NavConfig<T> {
+    pub fn config(&self) -> &DelayCompensatedNavConfig<T> {
         &self.config
     }
 
@@ -551,7 +551,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// Counted over the navigator's whole life: the counters of horizon
     /// filters it replaced (at [`reset`](Self::reset) and alignment) are
     /// kept.
-    pub fn ekf_refusals(&self) -> RefusalCounters {
+    pub fn ekf_refusals(&self) -> FilterRefusals {
         self.replaced_ekf_refusals.merged(self.ekf.refusals())
     }
 

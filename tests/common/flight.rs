@@ -3,7 +3,7 @@
 
 use super::{Lcg, Motion};
 use delaynav::geo::{magnetic_field_ned, quaternion_from_euler, rotation_matrix};
-use delaynav::nav::{DelayMode, NavConfig};
+use delaynav::nav::{DelayCompensatedNavConfig, DelayMode};
 use delaynav::{Ekf16Config, Gps, GpsPosition, Imu, Mag, Scalar};
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -13,8 +13,8 @@ pub const DECLINATION: f64 = 0.2;
 
 /// The navigator's default configuration for these flights' magnetic field
 /// at `imu_hz`.
-pub fn nav_config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> NavConfig<T> {
-    NavConfig {
+pub fn nav_config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> DelayCompensatedNavConfig<T> {
+    DelayCompensatedNavConfig {
         ekf: Ekf16Config {
             mag_inclination_rad: T::lit(INCLINATION),
             mag_declination_rad: T::lit(DECLINATION),
@@ -22,7 +22,7 @@ pub fn nav_config<T: Scalar>(mode: DelayMode<T>, imu_hz: f64) -> NavConfig<T> {
         },
         mode,
         imu_rate_hz: T::lit(imu_hz),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     }
 }
 

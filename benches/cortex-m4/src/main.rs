@@ -55,8 +55,8 @@ use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use delaynav::nav::HISTORY_ORDER;
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, DelayCompensatedNav, DelayMode, Ekf16, Ekf16Config, Error, Gps,
-    GpsPosition, Imu, Mag, NavConfig, Navigator,
+    AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, DelayCompensatedNavConfig,
+    DelayMode, Ekf16, Ekf16Config, Error, Gps, GpsPosition, Imu, Mag, Navigator,
 };
 use nalgebra::Vector3;
 
@@ -246,7 +246,7 @@ impl Subject for Ekf16<f32> {
 impl Subject for AugmentedEkf17<f32> {
     const BLANK: Self = AugmentedEkf17::BLANK;
     fn configure(&mut self, task: &Task) -> Result<(), Error> {
-        let mut config = Aekf17Config::with_nav(ekf_config());
+        let mut config = AugmentedEkf17Config::with_nav(ekf_config());
         config.initial_delay_s = sim::TRUE_DELAY_S;
         config.max_delay_s = task.max_delay_s;
         AugmentedEkf17::configure(self, config)
@@ -265,11 +265,11 @@ impl<const HIST: usize> Subject for DelayCompensatedNav<f32, HIST> {
                 delay_s: sim::TRUE_DELAY_S,
             }
         };
-        let mut config = NavConfig {
+        let mut config = DelayCompensatedNavConfig {
             ekf: ekf_config(),
             mode,
             imu_rate_hz: sim::IMU_RATE_HZ,
-            ..NavConfig::default()
+            ..DelayCompensatedNavConfig::default()
         };
         config.delay_loop.fusion.delay_max_s = task.max_delay_s;
         DelayCompensatedNav::configure(self, config)

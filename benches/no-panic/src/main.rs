@@ -17,8 +17,8 @@ use core::ptr::read_volatile;
 
 use cortex_m_rt::entry;
 use delaynav::{
-    Aekf17Config, AugmentedEkf17, DelayCompensatedNav, DelayMode, Ekf16, Ekf16Config, Geodetic,
-    Gps, GpsPosition, Imu, Mag, NavConfig, Navigator,
+    AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, DelayCompensatedNavConfig,
+    DelayMode, Ekf16, Ekf16Config, Geodetic, Gps, GpsPosition, Imu, Mag, Navigator,
 };
 use nalgebra::Vector3;
 
@@ -117,10 +117,10 @@ fn ekf16() {
 
 #[inline(never)]
 fn aekf17() {
-    let config = Aekf17Config {
+    let config = AugmentedEkf17Config {
         initial_delay_s: f(18),
         max_delay_s: f(19),
-        ..Aekf17Config::with_nav(ekf_config())
+        ..AugmentedEkf17Config::with_nav(ekf_config())
     };
     if let Ok(mut aekf) = AugmentedEkf17::new(config) {
         while flag(2) {
@@ -138,11 +138,11 @@ fn nav() {
     } else {
         DelayMode::Fixed { delay_s: f(18) }
     };
-    let mut config = NavConfig {
+    let mut config = DelayCompensatedNavConfig {
         ekf: ekf_config(),
         mode,
         imu_rate_hz: f(30),
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.delay_loop.fusion.delay_min_s = f(31);
     config.delay_loop.fusion.delay_max_s = f(19);

@@ -34,7 +34,8 @@ use cortex_m_semihosting::{debug, hprintln};
 use critical_section::Mutex;
 use delaynav::nav::{AlignmentState, HISTORY_ORDER, Health};
 use delaynav::{
-    DelayCompensatedNav, DelayMode, DelayStatus, Error, Estimate, Geodetic, NavConfig, Navigator,
+    DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, DelayStatus, Error, Estimate,
+    Geodetic, Navigator,
 };
 use world::{Glitches, Truth, World};
 
@@ -142,13 +143,13 @@ impl Refused {
 }
 
 /// The navigator's configuration for this vehicle.
-fn nav_config() -> NavConfig<f32> {
-    let mut config = NavConfig {
+fn nav_config() -> DelayCompensatedNavConfig<f32> {
+    let mut config = DelayCompensatedNavConfig {
         // Start the delay loop from the receiver's datasheet latency; it
         // measures the real one online.
         mode: DelayMode::Estimated { initial_s: 0.15 },
         imu_rate_hz: IMU_RATE_HZ,
-        ..NavConfig::default()
+        ..DelayCompensatedNavConfig::default()
     };
     config.delay_loop.fusion.delay_max_s = MAX_DELAY_S;
     // The local field (from a world magnetic model) and the home point.

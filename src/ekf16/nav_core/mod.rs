@@ -34,7 +34,7 @@
 //!   `NavCore::gps_block_verdict` (its own rejection timer,
 //!   `gps_reset_timeout_us`, and its NIS window, `gps_nis_window` /
 //!   `gps_nis_bound`) and, when it must, `NavCore::reset_gps_block` resets
-//!   that block alone to the fix (counted per block in [`RefusalCounters`],
+//!   that block alone to the fix (counted per block in [`FilterRefusals`],
 //!   recorded as the last [`GpsReset`]). Geodetic and NED fixes cannot be
 //!   mixed ([`check_position_kind`], shared with the navigator).
 //! - [`NavCore::fuse_restricted`]: any `M`-dim block `(y, H (M x N), R)` through
@@ -55,7 +55,7 @@
 //!   a clamp moves the value into a range and leaves `P` untouched.
 //! - Every refused sample leaves `x`, `P` and the clocks as they were (except
 //!   [`Error::StepTooLong`], see its docs) and increments a
-//!   [`RefusalCounters`] field.
+//!   [`FilterRefusals`] field.
 //! - No allocation: every buffer is a fixed-size nalgebra type.
 
 mod alignment;
@@ -71,7 +71,7 @@ use super::state::{
     ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, WxyzCoords,
     attitude_covariance, quaternion_of,
 };
-use super::{GpsReset, GpsResetCause, RefusalCounters};
+use super::{FilterRefusals, GpsReset, GpsResetCause};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
@@ -286,7 +286,7 @@ macro_rules! core_accessors {
         }
 
         /// Counters of refused and gated-out samples.
-        pub fn refusals(&self) -> RefusalCounters {
+        pub fn refusals(&self) -> FilterRefusals {
             self.core.refusals()
         }
 
@@ -373,7 +373,7 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// from horizontal), set at initialization or by the first sample after
     /// it, then followed slowly by the accepted samples.
     mag_field: Option<(T, T)>,
-    refusals: RefusalCounters,
+    refusals: FilterRefusals,
     /// False in [`BLANK`](Self::BLANK) and after a failed
     /// [`configure`](Self::configure): every sample is refused.
     configured: bool,
@@ -425,7 +425,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
             mag_field: None,
-            refusals: RefusalCounters::ZERO,
+            refusals: FilterRefusals::ZERO,
             configured: false,
         }
     };
@@ -505,7 +505,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;
         self.mag_field = None;
-        self.refusals = RefusalCounters::default();
+        self.refusals = FilterRefusals::default();
         self.configured = true;
         Ok(())
     }
@@ -606,7 +606,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// Refusal counters.
-    pub(crate) fn refusals(&self) -> RefusalCounters {
+    pub(crate) fn refusals(&self) -> FilterRefusals {
         self.refusals
     }
 
