@@ -370,14 +370,14 @@ fn a_position_step_resets_position_alone_and_health_says_why() {
     use delaynav::ekf16::{GpsBlock, GpsResetCause};
     use delaynav::nav::ResetCause;
     let clean = navigator_health(&[]);
-    assert_eq!(clean.ekf_refusals.gps_position_resets, 0);
-    assert_eq!(clean.ekf_refusals.gps_velocity_resets, 0);
+    assert_eq!(clean.refusals.horizon.gps_position_resets, 0);
+    assert_eq!(clean.refusals.horizon.gps_velocity_resets, 0);
     assert_eq!(clean.last_reset, None);
     let h = navigator_health(&[delaynav::sim::Fault::GpsPositionStep {
         from_s: 8.0,
         offset_m: [50.0, 0.0, 0.0],
     }]);
-    let r = h.ekf_refusals;
+    let r = h.refusals.horizon;
     assert_eq!((r.gps_position_resets, r.gps_velocity_resets), (1, 0));
     let Some(reset) = h.last_reset else {
         panic!("no reset reported")
@@ -404,7 +404,7 @@ fn a_magnetic_disturbance_is_refused_and_counted() {
     }]);
     // 5 s of a 100 Hz magnetometer: nearly all of the 500 turned samples
     // are refused by the heading gate (the clean run refuses ~0.3 %).
-    let refused = h.ekf_refusals.mag_rejected - clean.ekf_refusals.mag_rejected;
+    let refused = h.refusals.horizon.mag_rejected - clean.refusals.horizon.mag_rejected;
     assert!(refused >= 450, "{refused} refused");
     assert!(h.heading_valid);
 }

@@ -328,7 +328,7 @@ impl HealthSummary {
     /// The navigator's [`Health`]: its own refusals, its horizon filter's
     /// counters, alignment, last reset and delay status.
     fn of_navigator(h: &Health<f64>) -> Self {
-        let mut summary = Self::of_filter(h.ekf_refusals, None);
+        let mut summary = Self::of_filter(h.refusals.horizon, None);
         let n = h.refusals;
         let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead,
             gps_invalid, gps_time, gps_accuracy, gps_ahead, gps_mixed_frames, mag_invalid,

@@ -37,9 +37,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
         // Validated by `configure`: neither fails (a failure would leave
         // the part refusing, never half reset).
-        let refusals = self.ekf_refusals();
+        let refusals = self.horizon_refusals();
         if self.ekf.configure(self.config.ekf).is_ok() {
-            self.replaced_ekf_refusals = refusals;
+            self.refusals.horizon = refusals;
         }
         let _ = self.delay_loop.configure(self.config.loop_config());
         self.accel_whitening.reset();
@@ -130,9 +130,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
         // In place (this runs in a push): the old filter's counters are
         // kept; on error nothing changed.
-        let refusals = self.ekf_refusals();
+        let refusals = self.horizon_refusals();
         if self.ekf.configure_from_state(config, t_us, &x, &p).is_ok() {
-            self.replaced_ekf_refusals = refusals;
+            self.refusals.horizon = refusals;
         }
     }
 }

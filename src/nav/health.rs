@@ -14,9 +14,9 @@
 //!   axis.
 //! - **the alignment state** ([`AlignmentState`]).
 //! - **the last reset and its cause** ([`ResetRecord`]).
-//! - **refusals per sensor and reason**: the navigator's own
-//!   ([`NavRefusals`]) and the horizon EKF's
-//!   ([`FilterRefusals`]: gates, GPS resets).
+//! - **refusals per sensor and reason** ([`NavRefusals`]): the navigator's
+//!   input checks, and the horizon filter's checks, gates and GPS resets
+//!   ([`NavRefusals::horizon`]).
 //! - **the delay status** ([`DelayHealth`], with the loop's [`DelayStatus`]): filled from what the delay loop
 //!   exposes today (estimate, standard deviation, validity of the last
 //!   update's axes); a richer status from the loop (waiting for motion,
@@ -24,8 +24,8 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
+use crate::ekf16::GpsReset;
 use crate::ekf16::state::{POS, VEL};
-use crate::ekf16::{FilterRefusals, GpsReset};
 use crate::estimate::{Estimate, Navigator};
 use crate::scalar::Scalar;
 
@@ -124,10 +124,8 @@ pub struct Health<T: Scalar> {
     pub delay_valid: bool,
     /// The last reset, if any.
     pub last_reset: Option<ResetRecord>,
-    /// The navigator's own refusals.
+    /// Refusals, gates and resets, the horizon filter's among them.
     pub refusals: NavRefusals,
-    /// The horizon EKF's refusals, gates and resets.
-    pub ekf_refusals: FilterRefusals,
     /// The delay's status.
     pub delay: DelayHealth<T>,
 }
@@ -159,8 +157,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             delay_valid: !estimated
                 || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
             last_reset: self.last_reset.get(),
-            refusals: self.refusals,
-            ekf_refusals: self.ekf_refusals(),
+            refusals: self.refusals(),
             delay: DelayHealth {
                 estimated,
                 delay_s: self.delay_s(),

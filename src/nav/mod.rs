@@ -265,8 +265,6 @@ pub const DELAY_UPDATE_MAX_WAIT: u32 = 3;
 pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     config: DelayCompensatedNavConfig<T>,
     ekf: Ekf16<T>,
-    /// Counters of the horizon filters `ekf` replaced.
-    replaced_ekf_refusals: FilterRefusals,
     delay_loop: DefaultDelayLoop<T>,
     accel_whitening: Whitening<T>,
     gyro_whitening: Whitening<T>,
@@ -374,7 +372,6 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     pub const BLANK: Self = Self {
         config: DelayCompensatedNavConfig::ZEROED,
         ekf: Ekf16::BLANK,
-        replaced_ekf_refusals: FilterRefusals::ZERO,
         delay_loop: DefaultDelayLoop::BLANK,
         accel_whitening: Whitening::BLANK,
         gyro_whitening: Whitening::BLANK,
@@ -471,7 +468,6 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             .configure(config.loop_config())
             .map_err(|e| e.within(Section::DelayLoop))?;
         self.config = config;
-        self.replaced_ekf_refusals = FilterRefusals::default();
         self.accel_whitening = accel_whitening;
         self.gyro_whitening = gyro_whitening;
         self.history.clear();
@@ -541,18 +537,20 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         (self.configured && self.forward.is_ready()).then_some(self.present_accel)
     }
 
-    /// Samples refused or dropped by the navigator.
+    /// Samples refused, dropped or gated out, the horizon filter's among
+    /// them ([`NavRefusals::horizon`]).
     pub fn refusals(&self) -> NavRefusals {
-        self.refusals
+        NavRefusals {
+            horizon: self.horizon_refusals(),
+            ..self.refusals
+        }
     }
 
-    /// The horizon EKF's refusal and gating counters.
-    ///
-    /// Counted over the navigator's whole life: the counters of horizon
-    /// filters it replaced (at [`reset`](Self::reset) and alignment) are
-    /// kept.
-    pub fn ekf_refusals(&self) -> FilterRefusals {
-        self.replaced_ekf_refusals.merged(self.ekf.refusals())
+    /// The horizon filter's counters over the navigator's whole life: those
+    /// of the filters it replaced (kept in `self.refusals.horizon`) and the
+    /// current one's.
+    fn horizon_refusals(&self) -> FilterRefusals {
+        self.refusals.horizon.merged(self.ekf.refusals())
     }
 
     /// Work counters.

@@ -1,11 +1,18 @@
-//! The navigator's own counters: samples refused or gated out per sensor
-//! and reason ([`NavRefusals`]), and the work done ([`NavWork`]).
+//! The navigator's counters: samples refused or gated out per sensor and
+//! reason ([`NavRefusals`], the horizon filter's among them), and the work
+//! done ([`NavWork`]).
 
 use super::timeline::ClockRefusal;
+use crate::ekf16::FilterRefusals;
 use crate::error::Error;
 
-/// Samples refused or dropped by the navigator itself (the horizon EKF's own
-/// counters are in [`DelayCompensatedNav::ekf_refusals`](crate::nav::DelayCompensatedNav::ekf_refusals)).
+/// Samples refused, dropped or gated out, per sensor and reason: the
+/// navigator's input checks in the flat fields, the horizon filter's checks,
+/// gates and resets in [`horizon`](Self::horizon).
+///
+/// The two levels count different events: a sample the navigator refuses
+/// never reaches the horizon filter, and `horizon` counts what the filter did
+/// with the samples it was given at the delayed horizon.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NavRefusals {
@@ -48,6 +55,10 @@ pub struct NavRefusals {
     pub horizon_refused: u32,
     /// Samples the delay loop refused.
     pub delay_loop_refused: u32,
+    /// The horizon filter's refusals, gates and GPS resets, over the
+    /// navigator's whole life (the counters of horizon filters replaced at
+    /// [`reset`](crate::nav::DelayCompensatedNav::reset) and alignment are kept).
+    pub horizon: FilterRefusals,
 }
 
 impl NavRefusals {
@@ -69,6 +80,7 @@ impl NavRefusals {
         mag_averaged: 0,
         horizon_refused: 0,
         delay_loop_refused: 0,
+        horizon: FilterRefusals::ZERO,
     };
 }
 

@@ -368,7 +368,7 @@ fn finish(s: &Snapshot) -> ! {
         n.gps_invalid,
         n.mag_averaged,
     );
-    let k = &h.ekf_refusals;
+    let k = &h.refusals.horizon;
     hprintln!(
         "horizon EKF: gps position/velocity rejected {}/{}, mag rejected {}, disturbed {}, resets {}/{}",
         k.gps_position_rejected,
