@@ -7,8 +7,7 @@
 use delaynav::geo::{
     euler_from_quaternion, magnetic_field_ned, quaternion_from_euler, rotation_matrix, wrap_pi,
 };
-use delaynav::{Ekf16, Ekf16Config, Gps, GpsPosition, Imu, Mag, Navigator};
-use nalgebra::Vector3;
+use delaynav::prelude::*;
 
 /// Uniform noise with the standard deviation `std` (a small LCG: no dependency).
 struct Noise(u64);
@@ -74,24 +73,20 @@ fn main() -> Result<(), delaynav::Error> {
             }
         }
         let (q, v, w, f) = truth(t);
-        ekf.push_imu(&Imu {
+        // A refused sample leaves the filter unchanged and is counted in
+        // `ekf.refusals()` (printed at the end): routine, not a reason to stop.
+        let gyro = w + gyro_bias + noise.vec3(gyro_std);
+        let _ = ekf.push_imu(&Imu::new(
             t_us,
-            gyro_rad_s: w + gyro_bias + noise.vec3(gyro_std),
-            accel_m_s2: f + accel_bias + noise.vec3(accel_std),
-        })?;
+            gyro,
+            f + accel_bias + noise.vec3(accel_std),
+        ));
         if k % 20 == 0 {
             let field_body = rotation_matrix(q.quaternion()).transpose() * m_n + noise.vec3(0.14);
-            ekf.push_mag(&Mag { t_us, field_body })?;
+            let _ = ekf.push_mag(&Mag::new(t_us, field_body));
         }
         if k % 20 == 10 {
-            ekf.push_gps(&Gps {
-                t_us,
-                position: GpsPosition::Ned(r + noise.vec3(2.0)),
-                velocity_ned_m_s: v + noise.vec3(0.3),
-                horizontal_accuracy_m: None,
-                vertical_accuracy_m: None,
-                speed_accuracy_m_s: None,
-            })?;
+            let _ = ekf.push_gps(&Gps::ned(t_us, r + noise.vec3(2.0), v + noise.vec3(0.3)));
         }
     }
     let (q, v, _, _) = truth(steps as f64 * 5e-3);

@@ -16,9 +16,7 @@
 
 use std::sync::Mutex;
 
-use delaynav::nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode};
-use delaynav::{Error, Gps, GpsPosition, Imu, Navigator};
-use nalgebra::Vector3;
+use delaynav::prelude::*;
 
 /// History for a 0.5 s maximum delay at 1 kHz: `configure` checks that
 /// `ceil(0.5 s x 1000 Hz x 1.02) + 5 = 515 <= HIST` (README, "Sizing the
@@ -44,23 +42,12 @@ fn main() -> Result<(), Error> {
     for k in 1..=3000u64 {
         let t_us = k * 1000;
         refused += u32::from(
-            nav.push_imu(&Imu {
-                t_us,
-                gyro_rad_s: Vector3::zeros(),
-                accel_m_s2: gravity,
-            })
-            .is_err(),
+            nav.push_imu(&Imu::new(t_us, Vector3::zeros(), gravity))
+                .is_err(),
         );
         if k % 100 == 0 {
-            let fix = nav.push_gps(&Gps {
-                t_us,
-                position: GpsPosition::Ned(Vector3::new(10.0, -5.0, 0.0)),
-                velocity_ned_m_s: Vector3::zeros(),
-                horizontal_accuracy_m: None,
-                vertical_accuracy_m: None,
-                speed_accuracy_m_s: None,
-            });
-            refused += u32::from(fix.is_err());
+            let fix = Gps::ned(t_us, Vector3::new(10.0, -5.0, 0.0), Vector3::zeros());
+            refused += u32::from(nav.push_gps(&fix).is_err());
         }
     }
     let health = nav.health();

@@ -13,7 +13,7 @@
 //! |---|---|---|
 //! | `std` | yes | `std` support in the dependencies; without it the crate is `no_std` and allocation-free |
 //! | `serde` | no | `Serialize`/`Deserialize` for configurations, samples and estimates; a config file may be partial (missing fields take their defaults), an unknown key is an error |
-//! | `sim` | no | [`sim`]: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
+//! | `sim` | no | the `sim` module: trajectory and sensor simulator with the paper's noise table, CSV export (needs `std`) |
 //! | `replay` | no | log readers (ArduPilot `.bin`, PX4 `.ulg`, crate CSV, ArduPilot and PX4 CSV forms) merged into one sensor stream, flight window; implies `std` and `serde` |
 //!
 //! ## On a microcontroller (`no_std`, `f32`)
@@ -62,6 +62,7 @@ pub mod ekf16;
 pub mod error;
 pub mod estimate;
 pub mod geo;
+#[doc(hidden)]
 pub mod kalman;
 pub mod nav;
 #[cfg(feature = "replay")]
@@ -71,6 +72,24 @@ pub mod sensors;
 #[cfg(feature = "sim")]
 pub mod sim;
 mod zero_option;
+
+/// The filters' algebra, for those who verify or extend the filters; not
+/// needed to navigate, and not held to the stability of the rest of the API.
+///
+/// The process model of [`Ekf16`] and its Jacobian ([`process`](crate::internals::process)),
+/// its measurement models ([`measurement`](crate::internals::measurement)), the delta
+/// angle and velocity accumulation ([`delta`](crate::internals::delta)), the delayed GPS
+/// measurement of [`AugmentedEkf17`] ([`aekf17_measurement`](crate::internals::aekf17_measurement))
+/// and the Kalman update shared by every filter ([`kalman`]). The
+/// tests check each Jacobian against finite differences through these paths.
+pub mod internals {
+    #[doc(inline)]
+    pub use crate::aekf17::measurement as aekf17_measurement;
+    #[doc(inline)]
+    pub use crate::ekf16::{delta, measurement, process};
+    #[doc(inline)]
+    pub use crate::kalman;
+}
 
 /// The linear algebra of the API (`Vector3`, `UnitQuaternion`, ...): use
 /// this re-export to get the version the crate was built with.
@@ -83,7 +102,9 @@ pub use delay::{
 pub use ekf16::{Ekf16, Ekf16Config, FilterRefusals, NavState};
 pub use error::Error;
 pub use estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
-pub use nav::{AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Health};
+pub use nav::{
+    AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Health, history_len,
+};
 pub use scalar::Scalar;
 pub use sensors::{FixType, Geodetic, Gps, GpsFix, GpsPosition, Imu, ImuSample, Mag, MagSample};
 

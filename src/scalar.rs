@@ -119,7 +119,7 @@ pub fn s_to_us<T: Scalar>(s: T) -> Option<u64> {
 
 /// True when every component of a vector or matrix is finite.
 #[inline]
-pub fn all_finite<T: Scalar, R: nalgebra::Dim, C: nalgebra::Dim, S>(
+pub(crate) fn all_finite<T: Scalar, R: nalgebra::Dim, C: nalgebra::Dim, S>(
     m: &nalgebra::Matrix<T, R, C, S>,
 ) -> bool
 where
@@ -132,7 +132,7 @@ where
 /// contiguous storage (the generic iterator costs several times more on
 /// a 16x16 covariance checked after every step).
 #[inline]
-pub fn all_finite_fixed<T: Scalar, const R: usize, const C: usize>(
+pub(crate) fn all_finite_fixed<T: Scalar, const R: usize, const C: usize>(
     m: &nalgebra::SMatrix<T, R, C>,
 ) -> bool {
     m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite())

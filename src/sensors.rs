@@ -50,6 +50,15 @@ pub struct Geodetic {
 }
 
 impl Geodetic {
+    /// A position from latitude and longitude (degrees) and height (metres).
+    pub const fn new(lat_deg: f64, lon_deg: f64, alt_m: f64) -> Self {
+        Self {
+            lat_deg,
+            lon_deg,
+            alt_m,
+        }
+    }
+
     /// True when the three fields are finite and latitude/longitude are in range.
     pub fn is_valid(&self) -> bool {
         self.lat_deg.is_finite()
@@ -145,6 +154,18 @@ pub struct Imu<T: Scalar> {
     pub accel_m_s2: Vector3<T>,
 }
 
+impl<T: Scalar> Imu<T> {
+    /// A sample at `t_us` (µs) with the angular rate (rad/s) and the
+    /// specific force (m/s^2), both in body FRD.
+    pub const fn new(t_us: u64, gyro_rad_s: Vector3<T>, accel_m_s2: Vector3<T>) -> Self {
+        Self {
+            t_us,
+            gyro_rad_s,
+            accel_m_s2,
+        }
+    }
+}
+
 impl<T: Scalar> ImuSample<T> for Imu<T> {
     fn time_us(&self) -> u64 {
         self.t_us
@@ -165,6 +186,13 @@ pub struct Mag<T: Scalar> {
     pub t_us: u64,
     /// Field, body FRD, any unit.
     pub field_body: Vector3<T>,
+}
+
+impl<T: Scalar> Mag<T> {
+    /// A sample at `t_us` (µs) of the field in body FRD (any unit).
+    pub const fn new(t_us: u64, field_body: Vector3<T>) -> Self {
+        Self { t_us, field_body }
+    }
 }
 
 impl<T: Scalar> MagSample<T> for Mag<T> {
@@ -192,6 +220,40 @@ pub struct Gps<T: Scalar> {
     pub vertical_accuracy_m: Option<T>,
     /// Speed accuracy (1 sigma), m/s.
     pub speed_accuracy_m_s: Option<T>,
+}
+
+impl<T: Scalar> Gps<T> {
+    /// A fix received at `t_us` (µs, IMU clock) at a local NED position (m)
+    /// with a NED velocity (m/s), no accuracy reported.
+    pub const fn ned(t_us: u64, position_ned_m: Vector3<T>, velocity_ned_m_s: Vector3<T>) -> Self {
+        Self::at(t_us, GpsPosition::Ned(position_ned_m), velocity_ned_m_s)
+    }
+
+    /// A fix received at `t_us` (µs, IMU clock) at a WGS-84 position with a
+    /// NED velocity (m/s), no accuracy reported.
+    pub const fn geodetic(t_us: u64, position: Geodetic, velocity_ned_m_s: Vector3<T>) -> Self {
+        Self::at(t_us, GpsPosition::Geodetic(position), velocity_ned_m_s)
+    }
+
+    const fn at(t_us: u64, position: GpsPosition<T>, velocity_ned_m_s: Vector3<T>) -> Self {
+        Self {
+            t_us,
+            position,
+            velocity_ned_m_s,
+            horizontal_accuracy_m: None,
+            vertical_accuracy_m: None,
+            speed_accuracy_m_s: None,
+        }
+    }
+
+    /// The same fix with the receiver's 1-sigma accuracies: horizontal and
+    /// vertical position (m), speed per axis (m/s).
+    pub const fn with_accuracy(mut self, horizontal_m: T, vertical_m: T, speed_m_s: T) -> Self {
+        self.horizontal_accuracy_m = Some(horizontal_m);
+        self.vertical_accuracy_m = Some(vertical_m);
+        self.speed_accuracy_m_s = Some(speed_m_s);
+        self
+    }
 }
 
 impl<T: Scalar> GpsFix<T> for Gps<T> {

@@ -2,11 +2,12 @@
 //! convergence with motion, a delay held (its variance growing) without it, the range
 //! clamp, the delay setter and the refusal of bad input, in f32 and f64.
 
-use delaynav::aekf17::measurement::{
-    self, AUGMENTED_STATES, AugmentedStateVector, DELAY, navigation_acceleration,
-};
 use delaynav::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, VEL};
 use delaynav::geo::{quaternion_from_euler, rotation_matrix};
+use delaynav::internals::aekf17_measurement::{
+    self as aekf17_measurement, AUGMENTED_STATES, AugmentedStateVector, DELAY,
+    navigation_acceleration,
+};
 use delaynav::{
     AugmentedEkf17, AugmentedEkf17Config, Ekf16, Error, Geodetic, GpsOutcome, GpsPosition, Imu,
     Mag, NavState, Navigator, Scalar,
@@ -71,15 +72,16 @@ macro_rules! aekf17_tests {
                 let gyro = Vector3::new(lit(0.5), lit(-0.3), lit(0.8));
                 let accel = Vector3::new(lit(3.0), lit(-2.0), lit(-8.0));
                 let g = lit(G);
-                let (_, hp) = measurement::delayed_gps_position(&x, &accel, &lever, g);
+                let (_, hp) = aekf17_measurement::delayed_gps_position(&x, &accel, &lever, g);
                 let np = numeric_jacobian(&x, lit($step), |x| {
-                    measurement::delayed_gps_position(x, &accel, &lever, g).0
+                    aekf17_measurement::delayed_gps_position(x, &accel, &lever, g).0
                 });
                 let err = max_abs_diff(&hp, &np);
                 assert!(err < $jtol, "delayed position H: {err}");
-                let (_, hv) = measurement::delayed_gps_velocity(&x, &gyro, &accel, &lever, g);
+                let (_, hv) =
+                    aekf17_measurement::delayed_gps_velocity(&x, &gyro, &accel, &lever, g);
                 let nv = numeric_jacobian(&x, lit($step), |x| {
-                    measurement::delayed_gps_velocity(x, &gyro, &accel, &lever, g).0
+                    aekf17_measurement::delayed_gps_velocity(x, &gyro, &accel, &lever, g).0
                 });
                 let err = max_abs_diff(&hv, &nv);
                 assert!(err < $jtol, "delayed velocity H: {err}");
@@ -99,8 +101,11 @@ macro_rules! aekf17_tests {
                 assert!(max_abs_diff(&dv_dtau, &(-a)) < 100.0 * $round);
                 // The attitude terms differ from the 16-state ones by the
                 // acceleration's dependence on q.
-                let (_, h16) =
-                    delaynav::ekf16::measurement::gps_velocity(&sample_state::<T>(), &gyro, &lever);
+                let (_, h16) = delaynav::internals::measurement::gps_velocity(
+                    &sample_state::<T>(),
+                    &gyro,
+                    &lever,
+                );
                 let dq = hv.fixed_view::<3, 4>(0, QUAT) - h16.fixed_view::<3, 4>(0, QUAT);
                 assert!(dq.amax() > lit(0.5));
             }
@@ -113,12 +118,14 @@ macro_rules! aekf17_tests {
                 let gyro = Vector3::new(lit(0.5), lit(-0.3), lit(0.8));
                 let accel = Vector3::new(lit(3.0), lit(-2.0), lit(-8.0));
                 let x16 = sample_state::<T>();
-                let (hp, jp) = measurement::delayed_gps_position(&x, &accel, &lever, lit(G));
-                let (hp16, jp16) = delaynav::ekf16::measurement::gps_position(&x16, &lever);
+                let (hp, jp) = aekf17_measurement::delayed_gps_position(&x, &accel, &lever, lit(G));
+                let (hp16, jp16) = delaynav::internals::measurement::gps_position(&x16, &lever);
                 assert_eq!(hp, hp16);
                 assert_eq!(jp.fixed_view::<3, 16>(0, 0), jp16);
-                let (hv, jv) = measurement::delayed_gps_velocity(&x, &gyro, &accel, &lever, lit(G));
-                let (hv16, jv16) = delaynav::ekf16::measurement::gps_velocity(&x16, &gyro, &lever);
+                let (hv, jv) =
+                    aekf17_measurement::delayed_gps_velocity(&x, &gyro, &accel, &lever, lit(G));
+                let (hv16, jv16) =
+                    delaynav::internals::measurement::gps_velocity(&x16, &gyro, &lever);
                 assert_eq!(hv, hv16);
                 assert_eq!(jv.fixed_view::<3, 16>(0, 0), jv16);
             }

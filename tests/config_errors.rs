@@ -6,7 +6,7 @@ use delaynav::error::Bound;
 use delaynav::nav::WhiteningFilter;
 use delaynav::{
     AugmentedEkf17Config, DefaultDelayLoop, DelayCompensatedNav, DelayCompensatedNavConfig,
-    DelayLoopConfig, DelayMode, Ekf16Config, Error, Geodetic, Scalar,
+    DelayLoopConfig, DelayMode, Ekf16Config, Error, Geodetic, Scalar, history_len,
 };
 
 fn nav_error<T: Scalar>(config: DelayCompensatedNavConfig<T>) -> (Error, String) {
@@ -115,6 +115,57 @@ fn messages<T: Scalar>() {
              the IMU rate 1000 Hz, with margins; raise the const generic `HIST` by {short_by}"
         )
     );
+}
+
+/// `configure` with the delay range `[0, delay_s]` at `rate_hz` in a
+/// navigator of history `HIST`: accepted or refused for its history.
+fn fits<T: Scalar, const HIST: usize>(delay_s: f64, rate_hz: f64) -> bool {
+    let mut config = DelayCompensatedNavConfig::<T> {
+        imu_rate_hz: T::lit(rate_hz),
+        ..DelayCompensatedNavConfig::default()
+    };
+    config.delay_loop.fusion.delay_max_s = T::lit(delay_s);
+    match DelayCompensatedNav::<T, HIST>::new(config) {
+        Ok(_) => true,
+        Err(Error::InvalidConfig {
+            bound: Bound::History { .. },
+            ..
+        }) => false,
+        Err(e) => panic!("{delay_s} s at {rate_hz} Hz: {e}"),
+    }
+}
+
+/// `history_len` is the smallest history `configure` accepts, in both
+/// precisions.
+#[test]
+fn history_len_is_the_smallest_history_configure_accepts() {
+    macro_rules! smallest {
+        ($delay:expr, $rate:expr) => {{
+            const N: usize = history_len($delay, $rate);
+            for ok in [fits::<f32, N>($delay, $rate), fits::<f64, N>($delay, $rate)] {
+                assert!(ok, "{} s at {} Hz: {N} refused", $delay, $rate);
+            }
+            // One less is refused in the precision that needs it.
+            let short = [
+                fits::<f32, { N - 1 }>($delay, $rate),
+                fits::<f64, { N - 1 }>($delay, $rate),
+            ];
+            assert!(
+                short.contains(&false),
+                "{} s at {} Hz: {} accepted",
+                $delay,
+                $rate,
+                N - 1
+            );
+            N
+        }};
+    }
+    assert_eq!(smallest!(0.4, 1000.0), 413);
+    assert_eq!(smallest!(0.5, 1000.0), 515);
+    assert_eq!(smallest!(1.0, 1000.0), 1025);
+    assert_eq!(smallest!(1.0, 200.0), 209);
+    assert_eq!(smallest!(0.3, 400.0), 128);
+    assert_eq!(smallest!(0.25, 50.0), 18);
 }
 
 #[test]

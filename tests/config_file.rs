@@ -2,7 +2,7 @@
 //! keys refused by name, and a round trip through the serialized form.
 #![cfg(feature = "serde")]
 
-use delaynav::delay::calibration::CalibrationConfig;
+use delaynav::delay::CalibrationConfig;
 use delaynav::delay::{
     CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4, CLEAN_INPUT_MIN_PEAK, DEFAULT_MIN_ACCEL_VARIANCE_M2_S4,
     DEFAULT_MIN_PEAK, GainFusionConfig,

@@ -3,8 +3,8 @@
 //! and the 16-state EKF predicting over accumulated steps against the same
 //! EKF predicting at every sample, in f32 and f64.
 
-use delaynav::ekf16::delta::{DeltaAccumulator, ImuDeltas};
 use delaynav::ekf16::state::NAV_STATES;
+use delaynav::internals::delta::{DeltaAccumulator, ImuDeltas};
 use delaynav::{Ekf16, Ekf16Config, Imu, NavState, Navigator, Scalar};
 use nalgebra::{SVector, UnitQuaternion, Vector3};
 use std::f64::consts::PI;

@@ -10,10 +10,10 @@
 //! (measured: structured 4.4e-16 / 3.1e-7, sparse Joseph 4.4e-16 / 1.9e-7;
 //! dense 0 / 4.1e-7 and 3.2e-16 / 2.9e-7).
 
-use delaynav::ekf16::process;
 use delaynav::ekf16::state::{NAV_STATES, StateVector};
 use delaynav::geo::{quaternion_from_euler, quaternion_from_rotation_vector};
-use delaynav::kalman;
+use delaynav::internals::kalman;
+use delaynav::internals::process;
 use delaynav::{Ekf16Config, Scalar};
 use nalgebra::{SMatrix, SVector, Vector3};
 

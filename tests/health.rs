@@ -9,10 +9,10 @@ mod common;
 
 use common::Motion;
 use common::flight::{Flight, FlightEvent, Suite, feed, fly, nav_config};
-use delaynav::nav::health::{GPS_STALE_US, HEADING_STALE_US};
 use delaynav::nav::{
     AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Health,
 };
+use delaynav::nav::{GPS_STALE_US, HEADING_STALE_US};
 use delaynav::{DelayStatus, Navigator, Scalar};
 
 fn config<T: Scalar>(mode: DelayMode<T>) -> DelayCompensatedNavConfig<T> {

@@ -162,6 +162,31 @@ macro_rules! sensor_tests {
                     })
                 ));
             }
+
+            #[test]
+            fn constructors_fill_every_field() {
+                let (gyro, accel) = (Vector3::new(0.1, -0.2, 0.3), Vector3::new(0.0, 0.0, -9.8));
+                let imu = Imu::<T>::new(7, gyro, accel);
+                assert_eq!((imu.t_us, imu.gyro_rad_s, imu.accel_m_s2), (7, gyro, accel));
+                let mag = Mag::<T>::new(8, Vector3::new(0.2, 0.0, 0.4));
+                assert_eq!((mag.t_us, mag.field_body), (8, Vector3::new(0.2, 0.0, 0.4)));
+                let fix = Gps::<T>::ned(5, Vector3::new(1.0, 2.0, 3.0), Vector3::new(0.1, 0.2, 0.3))
+                    .with_accuracy(1.5, 2.5, 0.2);
+                let expected = Gps {
+                    vertical_accuracy_m: Some(2.5),
+                    ..gps()
+                };
+                assert_eq!(fix, expected);
+                let plain = Gps::<T>::ned(5, Vector3::zeros(), Vector3::zeros());
+                assert_eq!(
+                    (plain.horizontal_accuracy_m, plain.vertical_accuracy_m, plain.speed_accuracy_m_s),
+                    (None, None, None)
+                );
+                let place = Geodetic::new(31.2, 121.5, 4.0);
+                assert_eq!((place.lat_deg, place.lon_deg, place.alt_m), (31.2, 121.5, 4.0));
+                let fix = Gps::<T>::geodetic(9, place, Vector3::zeros());
+                assert_eq!(fix.position, GpsPosition::Geodetic(place));
+            }
         }
     };
 }

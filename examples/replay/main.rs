@@ -18,7 +18,7 @@ mod plots;
 
 use clap::Parser;
 use delaynav::ekf16::GpsReset;
-use delaynav::nav::health::Health;
+use delaynav::nav::Health;
 use delaynav::replay::{
     ArduPilotImu, DelayStep, EstimateWriter, FusionRecords, ImuNoise, LogDefaults, LogFiles,
     LogFormat, LogReader, MagneticModel, NoiseSource, ReaderOptions, ReferenceAlignment,

@@ -15,7 +15,7 @@
 //! ```
 //!
 //! The lever-arm terms are those of the 16-state filter
-//! ([`ekf16::measurement`](crate::ekf16::measurement)) taken at the current
+//! ([`internals::measurement`](crate::internals::measurement)) taken at the current
 //! attitude and rate: their change over `tau` is `O(|w| tau |l_b|)`,
 //! centimetres for a lever arm of decimetres, below the GPS noise.
 //!

@@ -5,11 +5,11 @@
 //!
 //! | part | where | paper |
 //! |---|---|---|
-//! | state `x^d = [q r v b_f b_w tau]` | [`measurement::DELAY`] | eq. (12) |
-//! | process model, `F`, `A`, `Q` (shared with [`Ekf16`](crate::Ekf16)) | [`ekf16::process`](crate::ekf16::process) | eqs. (2)-(5) |
-//! | delayed GPS model and its `H` (9x17 with the magnetometer rows) | [`measurement`] | eq. (11) |
-//! | magnetometer update, gating, Joseph update (shared) | [`ekf16::measurement`](crate::ekf16::measurement), [`kalman`](crate::kalman) | eqs. (6)-(10) |
-//! | configuration | [`config`] | |
+//! | state `x^d = [q r v b_f b_w tau]` | [`aekf17_measurement::DELAY`](crate::internals::aekf17_measurement::DELAY) | eq. (12) |
+//! | process model, `F`, `A`, `Q` (shared with [`Ekf16`](crate::Ekf16)) | [`internals::process`](crate::internals::process) | eqs. (2)-(5) |
+//! | delayed GPS model and its `H` (9x17 with the magnetometer rows) | [`internals::aekf17_measurement`](crate::internals::aekf17_measurement) | eq. (11) |
+//! | magnetometer update, gating, Joseph update (shared) | [`internals::measurement`](crate::internals::measurement), [`internals::kalman`](crate::internals::kalman) | eqs. (6)-(10) |
+//! | configuration | [`AugmentedEkf17Config`] | |
 //!
 //! # One filter, two state sizes
 //! [`Ekf16`](crate::Ekf16) and this filter run the same core: the
@@ -30,7 +30,7 @@
 //!
 //! # GPS fix
 //! A fix received at `t` is fused at the filter's time (the last IMU
-//! sample) with the model of [`measurement`]: position block
+//! sample) with the model of [`internals::aekf17_measurement`](crate::internals::aekf17_measurement): position block
 //! `r - v tau + a tau²/2` then velocity block `v - a tau` (each with its
 //! lever-arm terms), where `a = R(q)(f - b_f) + [0 0 g]`. Each block is
 //! gated on its NIS and recorded as in [`Ekf16`](crate::Ekf16); the
@@ -112,7 +112,7 @@
 //! Otherwise the fix
 //! is fused with a Schmidt (consider) update: the gain's row of `tau` is
 //! zeroed, `K' = C K` with `C = I - e_tau e_tau^T`
-//! ([`kalman::joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+//! ([`kalman::joseph_update_restricted`](crate::internals::kalman::joseph_update_restricted)):
 //!
 //! - `tau` keeps its value; the 16 other states take the fix with the gain
 //!   `K` of the full filter, whose `S = H P H^T + R` still counts the
@@ -135,7 +135,8 @@
 //! As [`Ekf16`](crate::Ekf16): refused samples return a typed [`Error`],
 //! leave the filter unchanged and are counted in [`FilterRefusals`].
 
-pub mod config;
+mod config;
+#[doc(hidden)]
 pub mod measurement;
 
 pub use config::AugmentedEkf17Config;
@@ -482,7 +483,7 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
     }
 
     /// Fuses the delayed position then the delayed velocity (eq. 11, see
-    /// [`measurement`]), each block gated on its own, `tau` kept in range
+    /// [`internals::aekf17_measurement`](crate::internals::aekf17_measurement)), each block gated on its own, `tau` kept in range
     /// after each; without the motion that makes `tau` observable, its row
     /// of the gain is zero (see the module docs).
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {

@@ -83,8 +83,7 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// each GPS difference against the IMU acceleration averaged over the
     /// same interval, shifted, instead of smoothed streams on the grid. For
     /// slow GPS (set by [`adapted_to_gps_rate`](Self::adapted_to_gps_rate)
-    /// below [`MATCHED_BELOW_HZ`]); the buffer must hold at most [`MATCHED_INTERVALS`](crate::delay::MATCHED_INTERVALS)
-    /// intervals.
+    /// below 3 Hz); the buffer must hold at most 32 intervals.
     pub matched_fix_intervals: bool,
     /// Smallest IMU acceleration variance over the buffer for `V_i = 1`, (m/s^2)^2.
     pub min_accel_variance_m2_s4: T,
@@ -134,7 +133,7 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// of the range before the status reports the delay out of range, s.
     pub out_of_range_after_s: T,
     /// Window of the second delay observation, from the horizon filter's
-    /// GPS innovations ([`innovation`](crate::delay::innovation) module), s: every this long its
+    /// GPS innovations ([`InnovationDelay`](crate::delay::InnovationDelay)), s: every this long its
     /// least-squares estimate is fused into the gain fusion. 0 disables
     /// (the default: the delay suite's figures for 4-6 s windows are in
     /// `docs/journal/2026-11-25-delay-robust-acquisition.md`; 5 s is the
@@ -150,7 +149,7 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub innovation_reacquire_sigma: T,
     /// Before the correlation locks, fuse the innovation windows as well,
     /// each only when it agrees with the previous window (within
-    /// [`ACQUIRE_AGREEMENT_SIGMA`](crate::delay::ACQUIRE_AGREEMENT_SIGMA) standard deviations of their difference)
+    /// 2 standard deviations of their difference)
     /// and with its variance times `innovation_acquire_noise_scale` too.
     /// Off: only once locked (refinement and step detection). Measured on
     /// the delay suite (`docs/journal/2026-11-25-delay-robust-acquisition.md`):
@@ -266,7 +265,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
     /// - below 5 Hz: the GPS difference spans one fix interval
     ///   (`gps_diff_span = 1`);
     /// - the correlation grid runs at 25 Hz (the default), at 12.5 Hz on the
-    ///   matched path (below [`MATCHED_BELOW_HZ`]), so that the IMU grid
+    ///   matched path (below 3 Hz), so that the IMU grid
     ///   history of [`DefaultDelayLoop`](crate::delay::DefaultDelayLoop) holds the buffer (10 s at 1 Hz), the
     ///   shifts and the longer lead of the IMU stream over the GPS one;
     /// - the smoothing of both accelerations follows the rate,
@@ -278,7 +277,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
     /// - the buffer holds at least 10 fix intervals: `max(5 s, 10 / rate)`
     ///   (at most 10 s);
     /// - a re-acquisition needs the disagreement over
-    ///   [`REACQUIRE_AFTER_FIXES`] new fixes: `reacquire_after_s` at least
+    ///   10 new fixes: `reacquire_after_s` at least
     ///   `10 / rate` (at 5 Hz, the per-window peaks of a real flight leave
     ///   the estimate for a second during a manoeuvre, see `docs/delay.md`).
     ///

@@ -220,7 +220,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     }
 
     /// Standard deviation of the estimate, s: the GFA's `sqrt(P)` scaled by
-    /// the innovation match (see [`SIGMA_MATCH_TIME_S`](crate::delay::SIGMA_MATCH_TIME_S)) once locked, so
+    /// the innovation match (over about 10 s of updates) once locked, so
     /// that it describes the errors the loop actually makes rather than its
     /// noise model's.
     pub fn delay_std_s(&self) -> T {
@@ -437,7 +437,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     }
 
     /// The horizon filter's record of one fused fix (the second observation
-    /// of the delay, [`innovation`](crate::delay::innovation) module). Nothing when
+    /// of the delay, [`InnovationDelay`]). Nothing when
     /// [`DelayLoopConfig::innovation_window_s`] is 0.
     pub fn push_horizon_fix(&mut self, fix: &HorizonFix<T>) {
         if !(self.configured && self.config.innovation_window_s > T::zero()) {

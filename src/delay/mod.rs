@@ -22,7 +22,7 @@
 //!    difference is time-stamped at the middle of its span, which accounts for
 //!    its `n dt / 2` lag. Both go through the same smoothing, whose lag then
 //!    cancels in the correlation.
-//! 2. Correlation ([`correlation`]): eq. (13) per NED axis as a Pearson
+//! 2. Correlation ([`SlidingCorrelator`]): eq. (13) per NED axis as a Pearson
 //!    coefficient over a buffer of `B` grid samples (default 5 s) for every
 //!    shift of the window `[tau_min, tau_max]` (default 0 to 1 s), updated by
 //!    sliding sums; the peak is refined by a parabola; `z_i = s_peak Tc` (s).
@@ -34,14 +34,14 @@
 //!    is at least `min_peak`, and the axis' IMU acceleration variance over the
 //!    buffer is at least `min_accel_variance_m2_s4`: without motion the peak
 //!    position says nothing about the delay.
-//!    A valid axis beyond [`AXIS_AGREEMENT_SIGMA`] of the best-measured
-//!    axis of the same window is left out.
-//! 4. Fusion ([`gain_fusion`]): Table 2, corrected, once per GPS fix (or every
+//!    A valid axis more than 3 standard deviations of their difference from
+//!    the best-measured axis of the same window is left out.
+//! 4. Fusion ([`GainFusion`]): Table 2, corrected, once per GPS fix (or every
 //!    `fixes_per_update` fixes), with `Q_f` and `R_i` derived per iteration
 //!    from rate-independent settings, `R_i` scaled by each axis' motion, and
 //!    a re-acquisition after a sustained disagreement (see
 //!    [`DelayLoopConfig`]).
-//! 5. Optional second observation ([`innovation`], off by default): the
+//! 5. Optional second observation ([`InnovationDelay`], off by default): the
 //!    horizon filter's GPS innovations regressed on `-[v; a]`, the filter's
 //!    absorption of the delay error tracked as a sensitivity, one window at
 //!    a time fused into the GFA ([`DelayLoop::push_horizon_fix`]).
@@ -103,15 +103,15 @@
 //! delay and of the buffer length. No allocation: every buffer is a
 //! const-generic array.
 
-pub mod calibration;
+mod calibration;
 mod config;
-pub mod correlation;
+mod correlation;
 mod delay_loop;
-pub mod fir;
-pub mod fractional_delay;
-pub mod gain_fusion;
+mod fir;
+mod fractional_delay;
+mod gain_fusion;
 mod grid;
-pub mod innovation;
+mod innovation;
 mod matched;
 pub(crate) mod packed;
 pub(crate) mod ring;
@@ -122,18 +122,18 @@ mod tracking;
 pub use calibration::{Calibration, CalibrationConfig, DefaultCalibrator, OfflineCalibrator};
 pub use config::{
     CLEAN_INPUT_MIN_ACCEL_VARIANCE_M2_S4, CLEAN_INPUT_MIN_PEAK, DEFAULT_MIN_ACCEL_VARIANCE_M2_S4,
-    DEFAULT_MIN_PEAK, DelayLoopConfig, MATCHED_BELOW_HZ, REACQUIRE_AFTER_FIXES,
+    DEFAULT_MIN_PEAK, DelayLoopConfig,
 };
 pub use correlation::{AxisPeak, PENDING_GPS_SAMPLES, SlidingCorrelator};
 pub use fir::WhiteningFir;
 pub use fractional_delay::{FractionalDelayLine, SamplePeriod};
-pub use gain_fusion::{AXES, GainFusion, GainFusionConfig, GainFusionStep};
-pub use grid::{MAX_GPS_DIFF_SPAN, MAX_GRID_TIME_US, MAX_INPUT_MAGNITUDE};
+pub use gain_fusion::{GainFusion, GainFusionConfig, GainFusionStep};
+pub use grid::MAX_INPUT_MAGNITUDE;
 pub use innovation::{HorizonFix, InnovationDelay};
-pub use matched::MATCHED_INTERVALS;
-pub use sigma::{SIGMA_MATCH_TIME_S, SIGMA_SCALE2_MAX, SIGMA_SCALE2_MIN};
 pub use status::{AxisUpdate, DelayStatus, DelayUpdate};
-pub use tracking::{ACQUIRE_AGREEMENT_SIGMA, AXIS_AGREEMENT_SIGMA, MAX_APPLIED_DELAY_ERROR_S};
+
+pub(crate) use gain_fusion::AXES;
+pub(crate) use tracking::{ACQUIRE_AGREEMENT_SIGMA, MAX_APPLIED_DELAY_ERROR_S};
 
 use crate::scalar::Scalar;
 use crate::zero_option::ZeroOption;

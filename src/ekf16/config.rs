@@ -100,11 +100,11 @@ pub struct Ekf16Config<T: Scalar> {
     /// *estimated* roll and pitch, so with an inclined field it is wrong by
     /// about `tan(I)` times the tilt error; the measurement Jacobian carries
     /// that term in both modes (see
-    /// [`mag_model_tilt_coupled`](super::measurement::mag_model_tilt_coupled)).
+    /// [`mag_model_tilt_coupled`](crate::internals::measurement::mag_model_tilt_coupled)).
     /// `false` (default): a "consider" update restricted to heading (the
     /// paper's stated intent for eq. 7, see
-    /// [`heading_only_restriction`](super::measurement::heading_only_restriction)
-    /// and [`joseph_update_restricted`](crate::kalman::joseph_update_restricted)):
+    /// [`heading_only_restriction`](crate::internals::measurement::heading_only_restriction)
+    /// and [`joseph_update_restricted`](crate::internals::kalman::joseph_update_restricted)):
     /// the correction's rotation is about the NED vertical only, the
     /// accelerometer biases and the roll/pitch-rate gyro biases are not
     /// moved; the tilt's uncertainty is still accounted for. `true`: the

@@ -4,15 +4,15 @@
 //! | part | where | paper |
 //! |---|---|---|
 //! | state `x = [q r v b_f b_w]` | [`state`] | eq. (1) |
-//! | process model, `F`, `A`, `Q` | [`process`] | eqs. (2)-(5) |
-//! | GPS and magnetometer models | [`measurement`] | eqs. (6)-(8) |
-//! | gain, Joseph update, gating | [`kalman`](crate::kalman) | eqs. (9)-(10) |
-//! | configuration | [`config`] | Table 3 defaults |
+//! | process model, `F`, `A`, `Q` | [`internals::process`](crate::internals::process) | eqs. (2)-(5) |
+//! | GPS and magnetometer models | [`internals::measurement`](crate::internals::measurement) | eqs. (6)-(8) |
+//! | gain, Joseph update, gating | [`internals::kalman`](crate::internals::kalman) | eqs. (9)-(10) |
+//! | configuration | [`Ekf16Config`] | Table 3 defaults |
 //!
 //! # Where this departs from the paper's print
 //! - eq. (3): the (3,1) entry of `R(q)` is `2(q1 q3 - q0 q2)` (printed with `+`);
 //! - eq. (4): the attitude is integrated with the exact rotation over the
-//!   step, not an Euler step (see [`process`]);
+//!   step, not an Euler step (see [`internals::process`](crate::internals::process));
 //! - eq. (5): `P = A P A^T + Q` (the transpose is missing);
 //! - eq. (6): `C_psi(3,3) = 1` (printed 0), and `m_n = [cos I cos D, cos I sin D, sin I]`
 //!   with `I` measured down from horizontal;
@@ -81,14 +81,21 @@
 //! `Q` of the gap, or of [`MAX_GAP_NOISE_US`] when the gap is longer (the
 //! state is then unknown anyway; the GPS block resets bring it back).
 
-pub mod config;
+mod config;
+#[doc(hidden)]
 pub mod delta;
+#[doc(hidden)]
 pub mod measurement;
 pub(crate) mod nav_core;
+#[doc(hidden)]
 pub mod process;
 pub mod state;
 
-pub use config::Ekf16Config;
+pub use config::{
+    DEFAULT_GPS_NIS_BOUND, DEFAULT_GPS_NIS_WINDOW, Ekf16Config, MAG_HEADING_GATE_3_SIGMA,
+    PAPER_IMU_RATE_HZ, STANDARD_GRAVITY, TABLE3_ACCEL_VARIANCE_G2, TABLE3_GPS_POSITION_VARIANCE,
+    TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE, TABLE3_MAG_VARIANCE,
+};
 pub use state::NavState;
 
 use crate::error::Error;
@@ -445,7 +452,7 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
     }
 
     /// Fuses position then velocity with the lever-arm models of
-    /// [`measurement`], each block gated on its own.
+    /// [`internals::measurement`](crate::internals::measurement), each block gated on its own.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
         self.push_gps_with_timing_noise(gps, T::zero(), &Vector3::zeros())
     }

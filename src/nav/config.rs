@@ -9,14 +9,6 @@ use crate::scalar::Scalar;
 /// `(15 - 1) / 2 = 7` samples (7 ms at 1 kHz).
 pub const WHITENING_TAPS: usize = 15;
 
-/// The navigator's `V_i` motion threshold, (m/s^2)^2: the delay loop's
-/// default, [`DEFAULT_MIN_ACCEL_VARIANCE_M2_S4`](crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4).
-pub const NAV_MIN_ACCEL_VARIANCE_M2_S4: f64 = crate::delay::DEFAULT_MIN_ACCEL_VARIANCE_M2_S4;
-
-/// The navigator's `V_i` peak threshold: the delay loop's default,
-/// [`DEFAULT_MIN_PEAK`](crate::delay::DEFAULT_MIN_PEAK).
-pub const NAV_MIN_PEAK: f64 = crate::delay::DEFAULT_MIN_PEAK;
-
 /// How the GPS delay is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -44,7 +36,7 @@ pub enum DelayMode<T: Scalar> {
 pub enum WhiteningFilter<T: Scalar> {
     /// No filtering: one unit tap, zero group delay.
     PassThrough,
-    /// Hamming-windowed sinc low-pass of [`WHITENING_TAPS`] taps
+    /// Hamming-windowed sinc low-pass of 15 taps
     /// ([`WhiteningFir::low_pass`](crate::delay::WhiteningFir::low_pass)).
     LowPass {
         /// Cutoff, Hz (below half the IMU rate).

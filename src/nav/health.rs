@@ -131,7 +131,7 @@ pub struct Health<T: Scalar> {
 }
 
 impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
-    /// What the navigator can vouch for now (see [`health`](crate::nav::health)).
+    /// What the navigator can vouch for now (see [`Health`]).
     pub fn health(&self) -> Health<T> {
         let alignment = self.alignment();
         let aligned = alignment == AlignmentState::Aligned;

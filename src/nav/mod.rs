@@ -148,10 +148,10 @@
 //! "Construction in place").
 
 mod alignment;
-pub mod config;
+mod config;
 mod delay_feedback;
 mod forward;
-pub mod health;
+mod health;
 mod horizon;
 mod input;
 mod mag_queue;
@@ -162,8 +162,11 @@ mod whitening;
 #[cfg(test)]
 mod memory;
 
-pub use config::{DelayCompensatedNavConfig, DelayMode, WHITENING_TAPS, WhiteningFilter};
-pub use health::{AlignmentState, DelayHealth, Health, ResetCause, ResetRecord};
+pub use config::{DelayCompensatedNavConfig, DelayMode, WhiteningFilter};
+pub use health::{
+    AlignmentState, DelayHealth, GPS_STALE_US, HEADING_STALE_US, Health, MAX_POSITION_STD_M,
+    MAX_VELOCITY_STD_M_S, ResetCause, ResetRecord,
+};
 pub use refusals::{NavRefusals, NavWork};
 
 use crate::delay::packed::{HeaderCache, PackedRing};
@@ -219,6 +222,48 @@ pub const MOVING_TILT_STD_RAD: f64 = 0.35;
 
 /// Relative margin on the IMU rate when checking the history size.
 const RATE_MARGIN: f64 = 1.02;
+
+/// The smallest history `HIST` (IMU samples) that
+/// [`DelayCompensatedNav::configure`] accepts for delays up to
+/// `max_delay_s` (s) at `imu_rate_hz` (Hz), for a navigator of either
+/// precision: `ceil(max_delay_s x imu_rate_hz x 1.02) + HISTORY_ORDER + 2`
+/// (2 % for an IMU faster than nominal; the cubic reads need
+/// `HISTORY_ORDER + 2` more samples).
+///
+/// `max_delay_s` is the configuration's `delay_loop.fusion.delay_max_s`
+/// (the largest delay, in estimated and fixed mode alike), plus the larger
+/// group delay of the IMU whitening filters when they are configured.
+/// `configure` checks in the navigator's precision; this takes the larger
+/// of the `f64` and the `f32` results, which differ by one sample where
+/// rounding lands the product on either side of an integer. A `const fn`,
+/// to size a `static` navigator:
+///
+/// ```
+/// use delaynav::{DelayCompensatedNav, history_len};
+///
+/// const HIST: usize = history_len(0.4, 1000.0); // 0.4 s at 1 kHz
+/// assert_eq!(HIST, 413);
+/// static NAV: DelayCompensatedNav<f32, HIST> = DelayCompensatedNav::BLANK;
+/// ```
+pub const fn history_len(max_delay_s: f64, imu_rate_hz: f64) -> usize {
+    let in_f64 = ceil_samples(max_delay_s * imu_rate_hz * RATE_MARGIN);
+    let in_f32 =
+        ceil_samples((max_delay_s as f32 * imu_rate_hz as f32 * RATE_MARGIN as f32) as f64);
+    let samples = if in_f64 > in_f32 { in_f64 } else { in_f32 };
+    samples.saturating_add(HISTORY_ORDER + 2)
+}
+
+/// `ceil(x)` as a count (0 for a negative or NaN `x`, saturated for a huge
+/// one). `f64::ceil` is not a `const fn` at the crate's minimum Rust; the
+/// cast truncates toward zero and saturates.
+const fn ceil_samples(x: f64) -> usize {
+    let whole = x as usize;
+    if (whole as f64) < x {
+        whole.saturating_add(1)
+    } else {
+        whole
+    }
+}
 
 /// IMU samples a fix's velocity waits at most for the delay loop: its
 /// correlation update runs at the first IMU sample after the fix that

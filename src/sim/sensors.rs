@@ -24,7 +24,7 @@
 
 use super::trajectory::STANDARD_GRAVITY;
 use crate::Scalar;
-use crate::ekf16::config::{
+use crate::ekf16::{
     Ekf16Config, PAPER_IMU_RATE_HZ, TABLE3_ACCEL_VARIANCE_G2, TABLE3_GPS_POSITION_VARIANCE,
     TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE, TABLE3_MAG_VARIANCE,
 };

@@ -68,7 +68,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Standard gravity, m/s^2: the unit `g` of the paper's Table 3 and the
 /// gravity of the simulated world (NED down positive); the one the EKF uses.
-pub use crate::ekf16::config::STANDARD_GRAVITY;
+pub use crate::ekf16::STANDARD_GRAVITY;
 
 /// Step of the central difference that gives the angular rate, seconds.
 const RATE_DIFFERENCE_STEP_S: f64 = 1e-3;

@@ -32,10 +32,9 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use critical_section::Mutex;
-use delaynav::nav::{AlignmentState, HISTORY_ORDER, Health};
 use delaynav::{
-    DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, DelayStatus, Error, Estimate,
-    Geodetic, Navigator,
+    AlignmentState, DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, DelayStatus, Error,
+    Estimate, Geodetic, Health, Navigator, history_len,
 };
 use world::{Glitches, Truth, World};
 
@@ -46,27 +45,10 @@ const MAX_DELAY_S: f32 = 0.4;
 /// The IMU's output data rate, Hz.
 const IMU_RATE_HZ: f32 = world::IMU_RATE_HZ as f32;
 
-/// IMU samples the navigator's history must hold for a delay range up to
-/// `max_delay_s` at `imu_rate_hz`: the rule `DelayCompensatedNav::configure`
-/// checks, `ceil(max_delay_s x imu_rate_hz x 1.02) + HISTORY_ORDER + 2`
-/// (2 % for an IMU running faster than nominal; the cubic reads need
-/// `HISTORY_ORDER + 2` more samples). With IMU whitening filters configured,
-/// add their group delay to `max_delay_s`. Computed in f32 as `configure`
-/// does for an `f32` navigator.
-const fn history_len(max_delay_s: f32, imu_rate_hz: f32) -> usize {
-    let samples = max_delay_s * imu_rate_hz * 1.02;
-    // `ceil` (not a `const fn` in `core`): the cast truncates.
-    let whole = samples as usize;
-    let ceil = if (whole as f32) < samples {
-        whole + 1
-    } else {
-        whole
-    };
-    ceil + HISTORY_ORDER + 2
-}
-
-/// The history: 413 samples for 0.4 s at 1 kHz.
-const HIST: usize = history_len(MAX_DELAY_S, IMU_RATE_HZ);
+/// The history: the IMU samples `configure` asks for to reach back
+/// `MAX_DELAY_S` at `IMU_RATE_HZ` (413 for 0.4 s at 1 kHz). With IMU
+/// whitening filters configured, add their group delay to the delay.
+const HIST: usize = history_len(MAX_DELAY_S as f64, IMU_RATE_HZ as f64);
 
 type Nav = DelayCompensatedNav<f32, HIST>;
 
@@ -322,12 +304,11 @@ fn finish(s: &Snapshot) -> ! {
     let h = &s.health;
     let (stack, stack_room) = stack_peak();
     hprintln!(
-        "navigator: DelayCompensatedNav<f32, {}> in a static, {} B (HIST = ceil({} s x {} Hz x 1.02) + {})",
+        "navigator: DelayCompensatedNav<f32, {}> in a static, {} B (HIST = history_len({} s, {} Hz))",
         HIST,
         size_of::<Nav>(),
         MAX_DELAY_S,
         IMU_RATE_HZ,
-        HISTORY_ORDER + 2
     );
     hprintln!("stack: {} B used of {} B", stack, stack_room);
     hprintln!(

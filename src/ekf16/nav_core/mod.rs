@@ -42,12 +42,12 @@
 //!   `C K`), then renormalizes the quaternion. A rejected or
 //!   failed fusion leaves `x` and `P` unchanged.
 //! - [`NavCore::push_mag`]: the magnetometer update of
-//!   [`measurement`](super::measurement) (or keeps the sample for
+//!   [`measurement`](crate::internals::measurement) (or keeps the sample for
 //!   initialization): refused as disturbed when the field norm or
 //!   inclination is off the learned field, gated on the heading innovation,
 //!   heading-only once the tilt standard deviation is below
 //!   `mag_tilt_alignment_std_rad` (the gain restricted by
-//!   [`measurement::heading_only_restriction`](super::measurement::heading_only_restriction)).
+//!   [`measurement::heading_only_restriction`](crate::internals::measurement::heading_only_restriction)).
 //! - [`NavCore::reset_extra_state`] and [`NavCore::clamp_extra_state`]: the
 //!   two ways a filter may change an extra state from outside the Kalman
 //!   algebra. A reset sets the value and variance and drops the state's
