@@ -52,6 +52,11 @@
 //! [`noise_floor()`] derives what Table 3's noise allows any filter to reach
 //! at hover; [`trajectory_bound()`] what the run's own sensors allow along
 //! its true trajectory, biases and delay included.
+//!
+//! # The suites
+//! [`suite`] runs the estimators on the simulator and judges them: the paper's Monte Carlo
+//! tables and the bound study, the sweeps, the fault suite and the delay suite, each with
+//! typed results, its JSON document and its verdicts.
 
 pub mod bound;
 pub mod csv;
@@ -60,6 +65,7 @@ pub mod faults;
 pub mod noise_floor;
 pub mod score;
 pub mod sensors;
+pub mod suite;
 pub mod trajectory;
 
 pub use bound::{
