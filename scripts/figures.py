@@ -44,7 +44,7 @@ def rust_e(x, digits):
 
 
 def fmt_value(x):
-    """examples/reproduce's fmt_value: 4 decimals from 0.01, else 3 significant digits."""
+    """delaynav::sim::suite::tables::fmt_value: 4 decimals from 0.01, else 3 significant digits."""
     if x is None:
         return "fail"
     if x == 0:
@@ -59,7 +59,7 @@ def fmt_short(x):
 
 
 def fmt_ci(mean, ci):
-    """examples/reproduce's fmt_ci: a mean and the half-width of its 95 % interval."""
+    """delaynav::sim::suite::tables's fmt_ci: a mean and the half-width of its 95 % interval."""
     if mean is None:
         return "fail"
     if ci is None or ci[0] is None or ci[1] is None:

@@ -1,13 +1,12 @@
-//! The delay suite of issue 11 (`examples/reproduce/delay_suite.rs`),
-//! shortened: one seed, a few rows. Checks the JSON shape the lead's
-//! tooling reads and the rows the loop passes today.
+//! The delay suite (`delaynav::sim::suite::delay`), shortened: one seed, a few
+//! rows. Checks the JSON shape the tooling reads, the rows the loop passes
+//! today, and that a row's trace measures what the suite measures.
 #![cfg(feature = "sim")]
 
-#[allow(dead_code, unused_imports)]
-#[path = "../examples/reproduce/main.rs"]
-mod reproduce;
-
-use reproduce::delay_suite::{LoopTuning, SuiteOptions, run, to_json};
+use delaynav::sim::suite::delay::{
+    DelayOptions, HoverSetup, LoopTuning, TraceOptions, run, write_hover_trace, write_trace,
+};
+use delaynav::sim::suite::no_progress;
 
 const ROWS: [&str; 4] = [
     "delay_step",
@@ -16,16 +15,22 @@ const ROWS: [&str; 4] = [
     "aekf17_hover",
 ];
 
+/// The suite's options on one seed and `rows`.
+fn one_seed(seed: u64, rows: &[&str], tuning: LoopTuning) -> DelayOptions {
+    DelayOptions {
+        seeds: vec![seed],
+        coverage_seeds: vec![seed],
+        rows: Some(rows.iter().map(|r| r.to_string()).collect()),
+        tuning,
+        ..DelayOptions::default()
+    }
+}
+
 #[test]
 fn shortened_suite_writes_the_issue_rows() {
-    let options = SuiteOptions {
-        seeds: vec![1],
-        coverage_seeds: vec![1],
-        rows: Some(ROWS.to_vec()),
-        tuning: LoopTuning::default(),
-    };
-    let rows = run(&options);
-    let json = to_json(&rows, &options);
+    let options = one_seed(1, &ROWS, LoopTuning::default());
+    let result = run(&options, &no_progress).expect("known rows");
+    let json = result.to_json();
     let scenarios = json["delay_scenarios"].as_array().expect("an array");
     let names: Vec<&str> = scenarios
         .iter()
@@ -60,6 +65,106 @@ fn shortened_suite_writes_the_issue_rows() {
     for name in ["delay_step", "negative_delay", "out_of_range_reported"] {
         assert!(passed(name), "{name}: {json:#}");
     }
+    // The verdicts are the rows'.
+    let verdicts = result.verdicts();
+    assert_eq!(verdicts.len(), ROWS.len());
+    for (v, row) in verdicts.iter().zip(&result.rows) {
+        assert_eq!((v.name.as_str(), v.holds()), (row.name, row.passed()));
+    }
+}
+
+/// A row's trace (`--delay-trace ROW --compare-accel`): one CSV row a second with the two
+/// comparison columns, and the navigator's RMSE the suite's row measures on that seed with
+/// the same tuning.
+#[test]
+fn trace_agrees_with_the_suite() {
+    let tuning = LoopTuning {
+        rate_std: Some(1e-3),
+        ..LoopTuning::default()
+    };
+    let options = TraceOptions {
+        row: "cold_start_high".into(),
+        seed: 2,
+        tuning,
+        compare_accel: true,
+        filter_rate_hz: None,
+    };
+    let mut csv = Vec::new();
+    let summary = write_trace(&options, &mut csv)
+        .expect("writes to memory")
+        .expect("a navigator row");
+    let text = String::from_utf8(csv).expect("UTF-8");
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(summary.rows, 61);
+    assert_eq!(lines.len(), 62);
+    let columns = lines[0].split(',').count();
+    // 8 + the GFA's sigma and the innovation window (3), 5 per axis, 2 compared.
+    assert_eq!(columns, 11 + 3 * 5 + 2);
+    assert!(lines.iter().all(|l| l.split(',').count() == columns));
+    assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
+    let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();
+    assert_eq!(names, ["navigator", "oracle_accel", "true_accel"]);
+    assert!(
+        summary
+            .rmse_ms
+            .iter()
+            .all(|(_, x)| x.is_finite() && *x > 0.0)
+    );
+    // The Cramer-Rao bound from every GPS velocity so far: below what each
+    // of the three loops reaches on this seed (a bound on the mean square
+    // over the noise; one lucky seed may score below it).
+    let bound = summary.information_bound_ms;
+    assert!(bound > 1.0 && summary.rmse_ms.iter().all(|(_, x)| *x > bound));
+    // The sigma's coverage (10 ms spacing) agrees with the CSV's rows
+    // (1 s spacing) from 20 s: columns sigma_s and error_ms.
+    let (mut inside, mut n) = (0.0, 0.0);
+    for line in lines[1..].iter().map(|l| l.split(',').collect::<Vec<_>>()) {
+        let value = |i: usize| line[i].parse::<f64>().expect("a number");
+        if value(0) >= 20.0 {
+            inside += f64::from(u8::from(value(4).abs() * 1e-3 <= value(3)));
+            n += 1.0;
+        }
+    }
+    assert!((0.0..=1.0).contains(&summary.sigma_coverage));
+    assert!((summary.sigma_coverage - inside / n).abs() < 0.05);
+    let suite = run(&one_seed(2, &["cold_start_high"], tuning), &no_progress)
+        .expect("a known row")
+        .rows[0]
+        .measured
+        .expect("measured");
+    assert_eq!(summary.rmse_ms[0].1, suite);
+    let none = TraceOptions {
+        row: "sigma_coverage".into(),
+        ..TraceOptions::default()
+    };
+    let written = write_trace(&none, &mut Vec::new());
+    assert!(written.expect("nothing written").is_none());
+}
+
+/// `--delay-trace aekf17_hover`: the default trace ends on the suite row's figure for that
+/// seed; a setup the filter refuses is an error, not a panic.
+#[test]
+fn hover_trace_agrees_with_the_suite() {
+    let mut csv = Vec::new();
+    let end = write_hover_trace(1, &HoverSetup::default(), &mut csv).expect("writes to memory");
+    let text = String::from_utf8(csv).expect("UTF-8");
+    assert_eq!(end.rows, 61);
+    assert_eq!(text.lines().count(), 62);
+    assert!(end.ratio.is_finite() && end.sigma_s > 0.0);
+    let suite = run(
+        &one_seed(1, &["aekf17_hover"], LoopTuning::default()),
+        &no_progress,
+    )
+    .expect("a known row")
+    .rows[0]
+        .measured
+        .expect("measured");
+    assert_eq!(end.ratio, suite);
+    let refused = HoverSetup {
+        delay_random_walk: Some(-1.0),
+        ..HoverSetup::default()
+    };
+    assert!(write_hover_trace(1, &refused, &mut Vec::new()).is_err());
 }
 
 /// The innovation observation on the navigator (`cold_start_high`, seed 1,
@@ -75,8 +180,12 @@ fn innovation_windows_match_their_variance() {
         innovation_reacquire_sigma: Some(0.0),
         ..LoopTuning::default()
     };
+    let options = TraceOptions {
+        tuning,
+        ..TraceOptions::default()
+    };
     let mut csv = Vec::new();
-    reproduce::delay_suite::write_trace("cold_start_high", 1, tuning, false, &mut csv)
+    write_trace(&options, &mut csv)
         .expect("writes to memory")
         .expect("a navigator row");
     let text = String::from_utf8(csv).expect("UTF-8");

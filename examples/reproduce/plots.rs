@@ -1,8 +1,13 @@
-//! Stacked line plots sharing the time axis (Figures 5 and 6 of the paper),
-//! drawn with plotters as SVG.
+//! The plots, drawn with plotters as SVG: stacked line plots sharing the time
+//! axis (Figures 5 and 6 of the paper, [`scenario`]) and a sweep's figures
+//! against its parameter ([`sweep`]).
 
+use delaynav::sim::Scenario;
+use delaynav::sim::suite::sweep::{SWEEP_FIGURES, SweepFigure, SweepParameter};
+use delaynav::sim::suite::tables::ScenarioResult;
 use plotters::prelude::*;
-use std::path::Path;
+use std::error::Error;
+use std::path::{Path, PathBuf};
 
 /// One line of a plot. Non-finite values leave a gap.
 pub struct Series<'a> {
@@ -59,11 +64,7 @@ fn segments(s: &Series) -> Vec<Vec<(f64, f64)>> {
 }
 
 /// Draws `panels` (those with a finite point) one above the other into `path`.
-pub fn panels(
-    path: &Path,
-    title: &str,
-    panels: &[Panel],
-) -> Result<(), Box<dyn std::error::Error>> {
+pub fn panels(path: &Path, title: &str, panels: &[Panel]) -> Result<(), Box<dyn Error>> {
     let drawn: Vec<&Panel> = panels
         .iter()
         .filter(|p| range(p.series.iter().flat_map(|s| s.y.iter().copied())).is_some())
@@ -109,6 +110,143 @@ pub fn panels(
             .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+/// Figures 5 and 6 of a scenario's first seed: true and estimated pitch,
+/// attitude errors, delay estimate; the paths written.
+pub fn scenario(dir: &Path, r: &ScenarioResult) -> Result<Vec<PathBuf>, Box<dyn Error>> {
+    std::fs::create_dir_all(dir)?;
+    let truth_t: Vec<f64> = r.truth_trace.iter().map(|p| p.0).collect();
+    let mut pitch = Panel {
+        title: "pitch (deg): truth and estimates".into(),
+        series: vec![Series {
+            name: "truth",
+            color: TRUTH_COLOR,
+            x: &truth_t,
+            y: r.truth_trace.iter().map(|p| p.1).collect(),
+        }],
+    };
+    let mut errors: Vec<Panel> = ["roll", "pitch", "yaw"]
+        .iter()
+        .map(|axis| Panel {
+            title: format!("{axis} error (deg)"),
+            series: Vec::new(),
+        })
+        .collect();
+    let mut delay = Panel {
+        title: "GPS delay (s): truth and estimates".into(),
+        series: vec![Series {
+            name: "truth",
+            color: TRUTH_COLOR,
+            x: &truth_t,
+            y: r.truth_trace.iter().map(|p| p.2).collect(),
+        }],
+    };
+    let plotted = r.traces.iter().filter(|(_, t)| !t.t_s.is_empty());
+    for (k, (name, trace)) in plotted.enumerate() {
+        let color = COLORS[k % COLORS.len()];
+        pitch.series.push(Series {
+            name,
+            color,
+            x: &trace.t_s,
+            y: trace.pitch_deg.clone(),
+        });
+        for (axis, panel) in errors.iter_mut().enumerate() {
+            panel.series.push(Series {
+                name,
+                color,
+                x: &trace.t_s,
+                y: trace.attitude_err_deg.iter().map(|e| e[axis]).collect(),
+            });
+        }
+        if trace.delay_s.iter().any(|d| d.is_finite()) {
+            delay.series.push(Series {
+                name,
+                color,
+                x: &trace.t_s,
+                y: trace.delay_s.clone(),
+            });
+        }
+    }
+    let name = r.scenario.name();
+    let attitude_path = dir.join(format!("{name}-attitude.svg"));
+    let mut all = vec![pitch];
+    all.extend(errors);
+    let title = format!("scenario {name}: attitude (first seed)");
+    panels(&attitude_path, &title, &all)?;
+    let delay_path = dir.join(format!("{name}-delay.svg"));
+    let title = format!("scenario {name}: GPS delay (first seed)");
+    panels(&delay_path, &title, &[delay])?;
+    Ok(vec![attitude_path, delay_path])
+}
+
+/// A sweep's tilt and velocity against its parameter, one line per estimator,
+/// log scale on both figures (a diverged estimator stays on the plot).
+pub fn sweep(
+    path: &Path,
+    parameter: SweepParameter,
+    scenario: Scenario,
+    column: &[&ScenarioResult],
+) -> Result<(), Box<dyn Error>> {
+    let root = SVGBackend::new(path, (900, 800)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let areas = root.split_evenly((2, 1));
+    let values = parameter.values();
+    let (x_min, x_max) = (values[0], values[values.len() - 1]);
+    let names: Vec<&str> = column[0].summaries.iter().map(|(n, _)| *n).collect();
+    let figures: [SweepFigure; 2] = [SWEEP_FIGURES[0], SWEEP_FIGURES[2]];
+    for (area, (label, get)) in areas.iter().zip(figures) {
+        let ys: Vec<f64> = column
+            .iter()
+            .flat_map(|r| r.summaries.iter().map(|(_, s)| get(&s.mean)))
+            .filter(|y| y.is_finite() && *y > 0.0)
+            .collect();
+        let y_min = ys.iter().copied().fold(f64::INFINITY, f64::min).max(1e-6) * 0.8;
+        let y_max = ys.iter().copied().fold(0.0, f64::max).max(y_min * 10.0) * 1.25;
+        let caption = format!(
+            "{} against {}, scenario {}",
+            label,
+            parameter.label(),
+            scenario.name()
+        );
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x_min..x_max, (y_min..y_max).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc(parameter.label())
+            .y_desc(label)
+            .draw()?;
+        for (i, name) in names.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            let points: Vec<(f64, f64)> = values
+                .iter()
+                .zip(column)
+                .map(|(x, r)| (*x, get(&r.summaries[i].1.mean)))
+                .filter(|(_, y)| y.is_finite() && *y > 0.0)
+                .collect();
+            chart
+                .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            chart.draw_series(
+                points
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
+            )?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
             .draw()?;
     }
     root.present()?;
