@@ -1,0 +1,186 @@
+//! The flags of `reproduce`, mapped to the suites' options by `main.rs` and
+//! `delay_suite.rs`.
+
+use clap::{Parser, ValueEnum};
+use delaynav::sim::suite::sweep::SweepParameter;
+use std::path::PathBuf;
+
+/// The sweeps (`sim::suite::sweep::SweepParameter`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SweepChoice {
+    /// GPS rate: 1, 2, 5, 10, 20 Hz.
+    #[value(name = "gps_rate")]
+    GpsRate,
+    /// IMU rate: 50, 100, 200, 1000 Hz (the magnetometer at most at the IMU rate).
+    #[value(name = "imu_rate")]
+    ImuRate,
+    /// True GPS delay: 0, 0.1, 0.2, 0.4, 0.6 s.
+    #[value(name = "delay")]
+    Delay,
+}
+
+impl From<SweepChoice> for SweepParameter {
+    fn from(choice: SweepChoice) -> Self {
+        match choice {
+            SweepChoice::GpsRate => SweepParameter::GpsRate,
+            SweepChoice::ImuRate => SweepParameter::ImuRate,
+            SweepChoice::Delay => SweepParameter::Delay,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScenarioChoice {
+    Low,
+    High,
+    All,
+}
+
+/// Reproduce the paper's simulation tables on the crate's simulator.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+pub struct Args {
+    /// Which acceleration scenario to run.
+    #[arg(long, value_enum, default_value = "all")]
+    pub scenario: ScenarioChoice,
+    /// Number of seeds per scenario [default: 5, quick: 2].
+    #[arg(long)]
+    pub seeds: Option<u64>,
+    /// First seed; the run uses seeds S, S+1, ...
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Length of each run, seconds [default: 60, quick: 20].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// True GPS delay, seconds (constant) [default: 0.2, Table 3's maximum].
+    #[arg(long)]
+    pub delay: Option<f64>,
+    /// Convergence time not scored, seconds.
+    #[arg(long, default_value_t = 10.0)]
+    pub skip: f64,
+    /// Where to write the JSON results.
+    #[arg(long, default_value = "target/reproduce/results.json")]
+    pub json: PathBuf,
+    /// Where to write the SVG plots [default: target/reproduce, none with --quick].
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// A short run for CI and tests (2 seeds of 20 s, no plots unless --plots).
+    #[arg(long)]
+    pub quick: bool,
+    /// Also write each scenario's first-seed run as a CSV log under
+    /// DIR/<scenario>-seed<S>/; with --delay-trace, the trace's CSV file.
+    #[arg(long, value_name = "DIR|FILE")]
+    pub csv: Option<PathBuf>,
+    /// Start `proposed` and `aekf17` from the fixed 0.1 s instead of an
+    /// offline calibration on a separate run (sec. 2.2.2).
+    #[arg(long)]
+    pub no_calibration: bool,
+    /// Seeds run in parallel [default: the machine's available parallelism].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Run a sweep instead of the tables: every estimator and the bound
+    /// against one parameter (a table and a plot per scenario).
+    #[arg(long, value_enum)]
+    pub sweep: Option<SweepChoice>,
+    /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
+    #[arg(long)]
+    pub faults: bool,
+    /// Run the delay suite of issue 11 instead (`delaynav::sim::suite::delay`); writes
+    /// `delay_scenarios` to the JSON file.
+    #[arg(long)]
+    pub delay_suite: bool,
+    /// Write a per-second trace of the delay suite's row ROW (seed --seed,
+    /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
+    /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
+    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length);
+    /// `calibrated_low` and `calibrated_high` trace the runs of
+    /// `sigma_coverage`.
+    #[arg(long, value_name = "ROW")]
+    pub delay_trace: Option<String>,
+    /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
+    #[arg(long, value_name = "S_PER_SQRT_S")]
+    pub aekf17_delay_random_walk: Option<f64>,
+    /// With --delay-trace aekf17_hover: AEKF17's `accel_smoothing_s` (0: the
+    /// paper's last sample) [default: its own].
+    #[arg(long, value_name = "S")]
+    pub aekf17_accel_smoothing: Option<f64>,
+    /// With --delay-trace: two more delay loops beside the navigator's, fed
+    /// the oracle navigator's acceleration and the true acceleration plus
+    /// the accelerometer's noise (their estimates as two more columns, the
+    /// three RMSEs from 20 s printed).
+    #[arg(long)]
+    pub compare_accel: bool,
+    /// With --delay-suite: only these rows (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
+    pub rows: Option<Vec<String>>,
+    /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
+    /// delay loop on, `GainFusionConfig::rate_std` in ms/s, in every row
+    /// [default: the loop's, off].
+    #[arg(long, value_name = "MS_PER_S")]
+    pub delay_rate_std: Option<f64>,
+    /// With --delay-suite or --delay-trace: `GainFusionConfig::rate_time_constant_s`, s, in
+    /// every row [default: the loop's].
+    #[arg(long, value_name = "S")]
+    pub delay_rate_time_constant: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
+    #[arg(long, value_name = "MS2_PER_S")]
+    pub delay_process_noise: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_window_s` (the horizon innovations' observation), s; 0
+    /// turns it off [default: the loop's].
+    #[arg(long, value_name = "S")]
+    pub delay_innovation_window: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    pub delay_innovation_noise_scale: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_reacquire_sigma` (0: off) [default: the loop's].
+    #[arg(long, value_name = "SIGMA")]
+    pub delay_innovation_reacquire_sigma: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_before_lock` on (fuse the innovation windows before
+    /// lock too, each when it agrees with the previous one).
+    #[arg(long)]
+    pub delay_innovation_before_lock: bool,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `acquisition_motion_exponent` (1 to 4) [default: the loop's].
+    #[arg(long, value_name = "EXPONENT")]
+    pub delay_acquisition_exponent: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `smoothing_cutoff_hz` (both accelerations' common low-pass), Hz
+    /// [default: the loop's; `adapted_to_gps_rate` rows set their own].
+    #[arg(long, value_name = "HZ")]
+    pub delay_smoothing_cutoff: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_acquire_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    pub delay_innovation_acquire_noise_scale: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
+    /// [default: the loop's].
+    #[arg(long, value_name = "MS2")]
+    pub delay_measurement_noise: Option<f64>,
+    /// Run only the bound study instead of the tables: the bound with each
+    /// difference to the estimators in turn, beside `oracle` and `proposed`.
+    #[arg(long)]
+    pub bound_study: bool,
+    /// Prediction rate of the navigator's horizon filter, Hz; 0 predicts at
+    /// every IMU sample [default: `DelayCompensatedNavConfig`'s].
+    #[arg(long)]
+    pub filter_rate_hz: Option<f64>,
+    /// With the default run, --faults or --delay-suite: print every verdict
+    /// and exit non-zero when one fails or a figure is NaN (`delaynav::sim::suite::check`).
+    #[arg(long)]
+    pub check: bool,
+    /// With --check: rows that fail for a known reason, printed as
+    /// `FAIL (known)`; naming a row that does not exist or passes fails.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "ROW,...",
+        requires = "check"
+    )]
+    pub known_failures: Vec<String>,
+}
