@@ -21,8 +21,8 @@
 //! [`Navigator`] and records, per IMU sample, the rotation-vector tilt and
 //! heading errors ([`tilt_heading_error_rad`])
 //! and the horizontal position; [`evaluate`] turns a trace (and the
-//! reference's) into a [`FaultResult`]. The `reproduce` example runs it
-//! (`--faults`); `docs/faults.md` has the table.
+//! reference's) into a [`FaultResult`]. [`suite::faults`](super::suite::faults) runs it
+//! (`reproduce --faults`); `docs/faults.md` has the table.
 
 use super::trajectory::{PathTerm, Scenario, TrajectoryConfig};
 use super::{SimConfig, SimEvent, Simulation, VibrationHarmonic, tilt_heading_error_rad};
