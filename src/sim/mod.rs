@@ -193,6 +193,22 @@ impl SimEvent {
             SimEvent::Gps { fix, .. } => fix.t_us,
         }
     }
+
+    /// The IMU sample of an IMU event.
+    pub fn imu_sample(&self) -> Option<Imu<f64>> {
+        match self {
+            SimEvent::Imu { sample, .. } => Some(*sample),
+            _ => None,
+        }
+    }
+
+    /// The fix of a GPS event.
+    pub fn gps_fix(&self) -> Option<Gps<f64>> {
+        match self {
+            SimEvent::Gps { fix, .. } => Some(*fix),
+            _ => None,
+        }
+    }
 }
 
 /// Ids of the random streams (second half of the ChaCha seed).

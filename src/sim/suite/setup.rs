@@ -44,14 +44,8 @@ pub fn calibrate(config: &SimConfig) -> Result<DelayStart, Error> {
     let cal_config = CalibrationConfig::<f64>::default();
     let mut calibrator = Box::new(DefaultCalibrator::<f64>::new(cal_config)?);
     let events: Vec<SimEvent> = Simulation::new(config.clone())?.collect();
-    let imu = events.iter().filter_map(|e| match e {
-        SimEvent::Imu { sample, .. } => Some(*sample),
-        _ => None,
-    });
-    let gps = events.iter().filter_map(|e| match e {
-        SimEvent::Gps { fix, .. } => Some(*fix),
-        _ => None,
-    });
+    let imu = events.iter().filter_map(SimEvent::imu_sample);
+    let gps = events.iter().filter_map(SimEvent::gps_fix);
     Ok(match calibrator.calibrate(imu, gps) {
         Ok(c) => DelayStart {
             delay_s: c.delay_s.clamp(0.0, 1.0),

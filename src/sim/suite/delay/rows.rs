@@ -113,17 +113,11 @@ impl DelayTrace {
 
 /// Feeds one event to an estimator (refusals are its business).
 pub(super) fn feed<N: Navigator<f64>>(estimator: &mut N, event: &SimEvent) {
-    match event {
-        SimEvent::Imu { sample, .. } => {
-            let _ = estimator.push_imu(sample);
-        }
-        SimEvent::Mag(m) => {
-            let _ = estimator.push_mag(m);
-        }
-        SimEvent::Gps { fix, .. } => {
-            let _ = estimator.push_gps(fix);
-        }
-    }
+    let _ = match event {
+        SimEvent::Imu { sample, .. } => estimator.push_imu(sample),
+        SimEvent::Mag(m) => estimator.push_mag(m).map(drop),
+        SimEvent::Gps { fix, .. } => estimator.push_gps(fix).map(drop),
+    };
 }
 
 /// The truth at `event` when it is a trace point: an IMU sample on the [`TRACE_STEP_US`] grid.
