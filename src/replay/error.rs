@@ -1,0 +1,105 @@
+//! [`ReplayError`]: why a log could not be opened or replayed.
+
+use super::LogFormat;
+use std::path::PathBuf;
+
+/// Why a log could not be opened. Bad rows are not errors: they are counted
+/// in [`SkipCounts`](super::SkipCounts).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReplayError {
+    /// A file or directory could not be opened.
+    #[error("cannot open {}: {source}", path.display())]
+    Open {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file's header row could not be read.
+    #[error("cannot read the header row of {}: {source}", path.display())]
+    Header {
+        /// The path.
+        path: PathBuf,
+        /// The CSV error.
+        #[source]
+        source: csv::Error,
+    },
+    /// A required column is missing from a file's header.
+    #[error("{} has no column `{column}`", path.display())]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The missing column (or alternatives, separated by `|`).
+        column: String,
+    },
+    /// A required file of the format was not found.
+    #[error("no {what} file among the {format} log inputs {searched}")]
+    MissingFile {
+        /// Which file, e.g. `"imu.csv"` or `"*_sensor_combined_*.csv"`.
+        what: &'static str,
+        /// The format looked for.
+        format: LogFormat,
+        /// The inputs searched.
+        searched: String,
+    },
+    /// `--format auto` could not tell the layout.
+    #[error(
+        "cannot tell the log format of {searched}: expected imu.csv (crate `t_us` or ArduPilot `t_s`) or PX4 `*_sensor_combined_*.csv`"
+    )]
+    UnknownFormat {
+        /// The inputs searched.
+        searched: String,
+    },
+    /// An unknown format name.
+    #[error("unknown log format `{0}` (expected auto, csv, ardupilot, px4, bin or ulg)")]
+    UnknownFormatName(String),
+    /// A binary log's bytes are not a valid record.
+    #[error(
+        "{} is corrupt{}{}: {reason}",
+        path.display(),
+        offset.map_or_else(String::new, |o| format!(" at byte {o}")),
+        record.as_ref().map_or_else(String::new, |r| format!(" (record {r})"))
+    )]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// Byte offset of the bad record, when the parser reports it.
+        offset: Option<u64>,
+        /// The record's message name, when known.
+        record: Option<String>,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A binary log lacks the records asked for (e.g. an IMU instance).
+    #[error("{} has no {what} records", path.display())]
+    MissingRecords {
+        /// The file.
+        path: PathBuf,
+        /// What was looked for.
+        what: String,
+    },
+    /// A duration option (seconds) is negative, NaN or infinite.
+    #[error("{name} must be a finite, non-negative number of seconds, not {value}")]
+    InvalidSeconds {
+        /// The option, e.g. `"added GPS delay"`.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+}
+
+/// Seconds to whole microseconds, rounded; values beyond `u64::MAX` µs
+/// (584,000 years) saturate there. A negative, NaN or infinite value is
+/// [`ReplayError::InvalidSeconds`] naming the option.
+pub fn seconds_to_us(name: &'static str, seconds: f64) -> Result<u64, ReplayError> {
+    if !seconds.is_finite() || seconds < 0.0 {
+        return Err(ReplayError::InvalidSeconds {
+            name,
+            value: seconds,
+        });
+    }
+    // `as` saturates for finite values above u64::MAX.
+    Ok((seconds * 1e6).round() as u64)
+}
