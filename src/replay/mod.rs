@@ -409,13 +409,22 @@ pub(crate) fn require(
     format: LogFormat,
     searched: &str,
 ) -> Result<PathBuf, ReplayError> {
-    named(files, name)
-        .cloned()
-        .ok_or_else(|| ReplayError::MissingFile {
-            what: name,
-            format,
-            searched: searched.to_string(),
-        })
+    required(named(files, name), name, format, searched)
+}
+
+/// The required file `what` of a `format` log, if `found`, or the error
+/// naming it.
+pub(crate) fn required(
+    found: Option<&PathBuf>,
+    what: &'static str,
+    format: LogFormat,
+    searched: &str,
+) -> Result<PathBuf, ReplayError> {
+    found.cloned().ok_or_else(|| ReplayError::MissingFile {
+        what,
+        format,
+        searched: searched.to_string(),
+    })
 }
 
 /// The per-file streams of one log.
