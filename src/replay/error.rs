@@ -3,8 +3,8 @@
 use super::LogFormat;
 use std::path::PathBuf;
 
-/// Why a log could not be opened. Bad rows are not errors: they are counted
-/// in [`SkipCounts`](super::SkipCounts).
+/// Why a log could not be opened or replayed. Bad rows are not errors: they
+/// are counted in [`SkipCounts`](super::SkipCounts).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ReplayError {
@@ -88,6 +88,53 @@ pub enum ReplayError {
         /// The value given.
         value: f64,
     },
+    /// An ArduPilot CSV log has two IMU files: instance 0 (`imu.csv`) and
+    /// 1 (`imu2.csv`).
+    #[error("IMU instance {instance}: the ArduPilot CSV layout has imu.csv (0) and imu2.csv (1)")]
+    NoSuchImu {
+        /// The instance asked for.
+        instance: u8,
+    },
+    /// An estimator name that is not registered
+    /// ([`session::ESTIMATORS`](super::session::ESTIMATORS)).
+    #[error(
+        "estimator `{name}` {}; available: {available}",
+        if *planned { "is not built into this version" } else { "is unknown" }
+    )]
+    UnknownEstimator {
+        /// The name asked for.
+        name: String,
+        /// `true` for a name the replay knows but this build lacks.
+        planned: bool,
+        /// The names that are available, `all` last, comma-separated.
+        available: String,
+    },
+    /// A configuration file could not be read, or its configuration is
+    /// invalid ([`config_file`](super::config_file)).
+    #[error("config file {}: {source}", path.display())]
+    ConfigFile {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: super::config_file::ConfigFileError,
+    },
+    /// An estimator (or the simulator) refused its configuration.
+    #[error(transparent)]
+    Config(#[from] crate::Error),
+    /// A file could not be written (the simulated run's CSV files).
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// What a [`ReplayObserver`](super::session::ReplayObserver) did with an
+    /// estimate failed (e.g. writing it to a file).
+    #[error(transparent)]
+    Output(Box<dyn std::error::Error + Send + Sync>),
 }
 
 /// Seconds to whole microseconds, rounded; values beyond `u64::MAX` µs

@@ -37,6 +37,13 @@
 //! `vehicle_attitude`. [`ReferenceReader`] streams it as [`ReferenceSample`]s;
 //! [`ReferenceAlignment`] holds the mounting trim and declination needed to
 //! compare like with like.
+//!
+//! # Replaying through the estimators
+//! [`replay`] drives one estimator through a log and scores it. The whole
+//! replay of the `replay` example is [`session`]: [`ReplayOptions`] to a
+//! [`ReplaySetup`] (defaults derived from the log, a TOML file of
+//! [`config_file`] merged over them), run through the [`ESTIMATORS`] into a
+//! [`ReplayReport`] (its JSON summary and console text).
 
 mod columns;
 mod error;
@@ -44,6 +51,7 @@ mod skips;
 mod table;
 
 pub mod ardupilot;
+pub mod config_file;
 pub mod crate_csv;
 pub mod dataflash;
 pub mod defaults;
@@ -51,6 +59,7 @@ pub mod estimates_csv;
 pub mod px4;
 mod reference;
 pub mod run;
+pub mod session;
 pub mod ulog;
 pub mod window;
 
@@ -61,6 +70,10 @@ pub use reference::{ReferenceAlignment, ReferenceReader, ReferenceSample};
 pub use run::{
     DelayStep, DelayStepSummary, DelayWindow, FusionRecords, ReferenceRms, RunOptions, RunSummary,
     WindowAxis, inclination_at_rest, replay,
+};
+pub use session::{
+    ESTIMATORS, EstimatorReport, HealthSummary, RegisteredEstimator, ReplayObserver, ReplayOptions,
+    ReplayReport, ReplaySetup, select_estimators,
 };
 pub use skips::{FileCounts, SkipCounts, SkipKind};
 pub use window::{FlightWindow, flight_window};
