@@ -33,7 +33,7 @@
 //! line without flags.
 //!
 //! # Outputs
-//! - Console text: [`ReplaySetup::log_line`], the [`SkipCounts`](super::SkipCounts)
+//! - Console text: [`ReplaySetup::log_line`], the [`SkipCounts`]
 //!   and [`DerivedDefaults`] (`Display`) at the start; then the table
 //!   ([`table_header`], [`EstimatorReport::table_row`]), the delay steps
 //!   and the health summary ([`ReplayReport::delay_steps`],
