@@ -37,11 +37,21 @@
 //! `vehicle_attitude`. [`ReferenceReader`] streams it as [`ReferenceSample`]s;
 //! [`ReferenceAlignment`] holds the mounting trim and declination needed to
 //! compare like with like.
+//!
+//! # Replaying through the estimators
+//! [`replay`] drives one estimator through a log and scores it. The whole
+//! replay of the `replay` example is [`session`]: [`ReplayOptions`] to a
+//! [`ReplaySetup`] (defaults derived from the log, a TOML file of
+//! [`config_file`] merged over them), run through the [`ESTIMATORS`] into a
+//! [`ReplayReport`] (its JSON summary and console text).
 
 mod columns;
+mod error;
+mod skips;
 mod table;
 
 pub mod ardupilot;
+pub mod config_file;
 pub mod crate_csv;
 pub mod dataflash;
 pub mod defaults;
@@ -49,24 +59,29 @@ pub mod estimates_csv;
 pub mod px4;
 mod reference;
 pub mod run;
+pub mod session;
 pub mod ulog;
 pub mod window;
 
 pub use defaults::{ImuNoise, LogDefaults, MagneticModel, NoiseSource, log_date, magnetic_model};
+pub use error::{ReplayError, seconds_to_us};
 pub use estimates_csv::EstimateWriter;
 pub use reference::{ReferenceAlignment, ReferenceReader, ReferenceSample};
 pub use run::{
     DelayStep, DelayStepSummary, DelayWindow, FusionRecords, ReferenceRms, RunOptions, RunSummary,
     WindowAxis, inclination_at_rest, replay,
 };
+pub use session::{
+    ESTIMATORS, EstimatorReport, HealthSummary, RegisteredEstimator, ReplayObserver, ReplayOptions,
+    ReplayReport, ReplaySetup, select_estimators,
+};
+pub use skips::{FileCounts, SkipCounts, SkipKind};
 pub use window::{FlightWindow, flight_window};
 
-use crate::error::Error;
 use crate::geo::quaternion_from_euler;
 use crate::scalar::Scalar;
 use crate::sensors::{Geodetic, Gps, GpsPosition, Imu, Mag, checked_gps, checked_imu, checked_mag};
 use nalgebra::{UnitQuaternion, Vector3};
-use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use table::RowStream;
@@ -128,274 +143,6 @@ impl Timed for ReferenceSample {
     fn time_us(&self) -> u64 {
         self.t_us
     }
-}
-
-/// Why a row was skipped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum SkipKind {
-    /// A cell is missing, empty where a value is required, or not a number.
-    Unparsable,
-    /// A value is NaN or infinite.
-    NonFinite,
-    /// A value is outside its valid range (negative time, latitude beyond
-    /// 90 deg, zero magnetic field, non-positive accuracy).
-    OutOfRange,
-    /// The logger flagged the sample invalid (unhealthy magnetometer,
-    /// invalid relative timestamp, GPS velocity marked not valid).
-    Invalid,
-    /// A GPS row without a 3-D fix.
-    NoFix,
-    /// The row's time is earlier than the previous accepted row of its file.
-    TimeWentBackwards,
-    /// The row repeats the previous accepted row's timestamp.
-    Duplicate,
-}
-
-impl SkipKind {
-    /// Every kind, in report order.
-    pub const ALL: [SkipKind; 7] = [
-        Self::Unparsable,
-        Self::NonFinite,
-        Self::OutOfRange,
-        Self::Invalid,
-        Self::NoFix,
-        Self::TimeWentBackwards,
-        Self::Duplicate,
-    ];
-
-    /// A short snake_case name for reports and JSON keys.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Unparsable => "unparsable",
-            Self::NonFinite => "non_finite",
-            Self::OutOfRange => "out_of_range",
-            Self::Invalid => "invalid",
-            Self::NoFix => "no_fix",
-            Self::TimeWentBackwards => "time_went_backwards",
-            Self::Duplicate => "duplicate",
-        }
-    }
-
-    fn index(self) -> usize {
-        self as usize
-    }
-}
-
-impl fmt::Display for SkipKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl From<Error> for SkipKind {
-    /// How a sample refused by the crate's checks is counted.
-    fn from(e: Error) -> Self {
-        match e {
-            Error::NonFinite { .. } => Self::NonFinite,
-            Error::TimeWentBackwards { .. } => Self::TimeWentBackwards,
-            Error::DuplicateTimestamp { .. } => Self::Duplicate,
-            _ => Self::OutOfRange,
-        }
-    }
-}
-
-/// Rows accepted and skipped in one file.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct FileCounts {
-    /// Rows turned into samples.
-    pub accepted: u64,
-    skipped: [u64; SkipKind::ALL.len()],
-}
-
-impl FileCounts {
-    /// Rows skipped for `kind`.
-    pub fn skipped(&self, kind: SkipKind) -> u64 {
-        self.skipped[kind.index()]
-    }
-
-    /// Rows skipped for any reason.
-    pub fn skipped_total(&self) -> u64 {
-        self.skipped.iter().sum()
-    }
-}
-
-/// The report of every reader: rows accepted and skipped, by file and by kind.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct SkipCounts {
-    files: BTreeMap<String, FileCounts>,
-}
-
-impl SkipCounts {
-    /// Counts one skipped row of `file`.
-    pub fn skip(&mut self, file: &str, kind: SkipKind) {
-        self.entry(file).skipped[kind.index()] += 1;
-    }
-
-    /// Counts one accepted row of `file`.
-    pub fn accept(&mut self, file: &str) {
-        self.entry(file).accepted += 1;
-    }
-
-    fn entry(&mut self, file: &str) -> &mut FileCounts {
-        if !self.files.contains_key(file) {
-            self.files.insert(file.to_string(), FileCounts::default());
-        }
-        self.files.get_mut(file).expect("inserted above")
-    }
-
-    /// Rows skipped for `kind`, all files together.
-    pub fn count(&self, kind: SkipKind) -> u64 {
-        self.files.values().map(|c| c.skipped(kind)).sum()
-    }
-
-    /// Rows skipped for any reason, all files together.
-    pub fn total(&self) -> u64 {
-        self.files.values().map(FileCounts::skipped_total).sum()
-    }
-
-    /// The counts of one file (by file name), if it was read.
-    pub fn file(&self, file: &str) -> Option<&FileCounts> {
-        self.files.get(file)
-    }
-
-    /// Every file read, by name.
-    pub fn files(&self) -> impl Iterator<Item = (&str, &FileCounts)> {
-        self.files.iter().map(|(k, v)| (k.as_str(), v))
-    }
-
-    /// Kinds with a non-zero count and their totals, in [`SkipKind::ALL`] order.
-    pub fn by_kind(&self) -> Vec<(SkipKind, u64)> {
-        SkipKind::ALL
-            .iter()
-            .map(|&k| (k, self.count(k)))
-            .filter(|&(_, n)| n > 0)
-            .collect()
-    }
-}
-
-impl fmt::Display for SkipCounts {
-    /// One line per file: `gps.csv: 1038 accepted, 161 skipped (no_fix 161)`.
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for (name, c) in &self.files {
-            write!(
-                f,
-                "{name}: {} accepted, {} skipped",
-                c.accepted,
-                c.skipped_total()
-            )?;
-            let kinds: Vec<String> = SkipKind::ALL
-                .iter()
-                .filter(|&&k| c.skipped(k) > 0)
-                .map(|&k| format!("{k} {}", c.skipped(k)))
-                .collect();
-            if !kinds.is_empty() {
-                write!(f, " ({})", kinds.join(", "))?;
-            }
-            writeln!(f)?;
-        }
-        Ok(())
-    }
-}
-
-/// Why a log could not be opened. Bad rows are not errors: they are counted
-/// in [`SkipCounts`].
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ReplayError {
-    /// A file or directory could not be opened.
-    #[error("cannot open {}: {source}", path.display())]
-    Open {
-        /// The path.
-        path: PathBuf,
-        /// The I/O error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A file's header row could not be read.
-    #[error("cannot read the header row of {}: {source}", path.display())]
-    Header {
-        /// The path.
-        path: PathBuf,
-        /// The CSV error.
-        #[source]
-        source: csv::Error,
-    },
-    /// A required column is missing from a file's header.
-    #[error("{} has no column `{column}`", path.display())]
-    MissingColumn {
-        /// The file.
-        path: PathBuf,
-        /// The missing column (or alternatives, separated by `|`).
-        column: String,
-    },
-    /// A required file of the format was not found.
-    #[error("no {what} file among the {format} log inputs {searched}")]
-    MissingFile {
-        /// Which file, e.g. `"imu.csv"` or `"*_sensor_combined_*.csv"`.
-        what: &'static str,
-        /// The format looked for.
-        format: LogFormat,
-        /// The inputs searched.
-        searched: String,
-    },
-    /// `--format auto` could not tell the layout.
-    #[error(
-        "cannot tell the log format of {searched}: expected imu.csv (crate `t_us` or ArduPilot `t_s`) or PX4 `*_sensor_combined_*.csv`"
-    )]
-    UnknownFormat {
-        /// The inputs searched.
-        searched: String,
-    },
-    /// An unknown format name.
-    #[error("unknown log format `{0}` (expected auto, csv, ardupilot, px4, bin or ulg)")]
-    UnknownFormatName(String),
-    /// A binary log's bytes are not a valid record.
-    #[error(
-        "{} is corrupt{}{}: {reason}",
-        path.display(),
-        offset.map_or_else(String::new, |o| format!(" at byte {o}")),
-        record.as_ref().map_or_else(String::new, |r| format!(" (record {r})"))
-    )]
-    Corrupt {
-        /// The file.
-        path: PathBuf,
-        /// Byte offset of the bad record, when the parser reports it.
-        offset: Option<u64>,
-        /// The record's message name, when known.
-        record: Option<String>,
-        /// What is wrong.
-        reason: String,
-    },
-    /// A binary log lacks the records asked for (e.g. an IMU instance).
-    #[error("{} has no {what} records", path.display())]
-    MissingRecords {
-        /// The file.
-        path: PathBuf,
-        /// What was looked for.
-        what: String,
-    },
-    /// A duration option (seconds) is negative, NaN or infinite.
-    #[error("{name} must be a finite, non-negative number of seconds, not {value}")]
-    InvalidSeconds {
-        /// The option, e.g. `"added GPS delay"`.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-    },
-}
-
-/// Seconds to whole microseconds, rounded; values beyond `u64::MAX` µs
-/// (584,000 years) saturate there. A negative, NaN or infinite value is
-/// [`ReplayError::InvalidSeconds`] naming the option.
-pub fn seconds_to_us(name: &'static str, seconds: f64) -> Result<u64, ReplayError> {
-    if !seconds.is_finite() || seconds < 0.0 {
-        return Err(ReplayError::InvalidSeconds {
-            name,
-            value: seconds,
-        });
-    }
-    // `as` saturates for finite values above u64::MAX.
-    Ok((seconds * 1e6).round() as u64)
 }
 
 /// The log layouts the readers understand.
@@ -675,13 +422,22 @@ pub(crate) fn require(
     format: LogFormat,
     searched: &str,
 ) -> Result<PathBuf, ReplayError> {
-    named(files, name)
-        .cloned()
-        .ok_or_else(|| ReplayError::MissingFile {
-            what: name,
-            format,
-            searched: searched.to_string(),
-        })
+    required(named(files, name), name, format, searched)
+}
+
+/// The required file `what` of a `format` log, if `found`, or the error
+/// naming it.
+pub(crate) fn required(
+    found: Option<&PathBuf>,
+    what: &'static str,
+    format: LogFormat,
+    searched: &str,
+) -> Result<PathBuf, ReplayError> {
+    found.cloned().ok_or_else(|| ReplayError::MissingFile {
+        what,
+        format,
+        searched: searched.to_string(),
+    })
 }
 
 /// The per-file streams of one log.

@@ -103,13 +103,7 @@ fn require_topic(
     topic: &'static str,
     searched: &str,
 ) -> Result<PathBuf, ReplayError> {
-    find_topic(files, topic)
-        .cloned()
-        .ok_or_else(|| ReplayError::MissingFile {
-            what: topic,
-            format: LogFormat::Px4,
-            searched: searched.to_string(),
-        })
+    super::required(find_topic(files, topic), topic, LogFormat::Px4, searched)
 }
 
 pub(crate) fn locate(files: &[PathBuf], searched: &str) -> Result<LogFiles, ReplayError> {
