@@ -125,19 +125,19 @@ pub struct TablesOptions {
     pub duration_s: f64,
     /// True GPS delay, s, constant; `None`: the scenario's (0.2 s).
     pub delay_s: Option<f64>,
-    /// GPS rate, Hz, when not the default (sweeps).
-    pub gps_rate_hz: Option<f64>,
-    /// IMU rate, Hz, when not the default (sweeps); the magnetometer at most at this rate.
-    pub imu_rate_hz: Option<f64>,
     /// Convergence time not scored, s [default: 10].
     pub skip_s: f64,
+    /// GPS rate, Hz, when not the default (sweeps).
+    pub gps_rate_hz: Option<f64>,
     /// Start the delay estimators from an offline calibration [default: on]; off, from 0.1 s.
     pub calibrated: bool,
+    /// IMU rate, Hz, when not the default (sweeps); the magnetometer at most at this rate.
+    pub imu_rate_hz: Option<f64>,
+    /// Keep the first seed's traces for the plots [default: on].
+    pub keep_trace: bool,
     /// Prediction rate of the navigator's horizon filter, Hz; 0 predicts at every IMU sample
     /// (`None`: its default).
     pub filter_rate_hz: Option<f64>,
-    /// Keep the first seed's traces for the plots [default: on].
-    pub keep_trace: bool,
     /// Seeds run at once [default: the machine's available parallelism].
     pub threads: usize,
 }
@@ -149,12 +149,12 @@ impl Default for TablesOptions {
             seeds: (1..=5).collect(),
             duration_s: 60.0,
             delay_s: None,
-            gps_rate_hz: None,
-            imu_rate_hz: None,
             skip_s: 10.0,
+            gps_rate_hz: None,
             calibrated: true,
-            filter_rate_hz: None,
+            imu_rate_hz: None,
             keep_trace: true,
+            filter_rate_hz: None,
             threads: std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
         }
     }
