@@ -1,6 +1,7 @@
 //! The flags of `reproduce`, mapped to the suites' options by `main.rs` and
 //! `delay_suite.rs`.
 
+use super::delay_suite::DelayFlags;
 use clap::{Parser, ValueEnum};
 use delaynav::sim::suite::sweep::SweepParameter;
 use std::path::PathBuf;
@@ -89,79 +90,9 @@ pub struct Args {
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
     pub delay_suite: bool,
-    /// Write a per-second trace of the delay suite's row ROW (seed --seed,
-    /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
-    /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
-    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length);
-    /// `calibrated_low` and `calibrated_high` trace the runs of
-    /// `sigma_coverage`.
-    #[arg(long, value_name = "ROW")]
-    pub delay_trace: Option<String>,
-    /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
-    #[arg(long, value_name = "S_PER_SQRT_S")]
-    pub aekf17_delay_random_walk: Option<f64>,
-    /// With --delay-trace aekf17_hover: AEKF17's `accel_smoothing_s` (0: the
-    /// paper's last sample) [default: its own].
-    #[arg(long, value_name = "S")]
-    pub aekf17_accel_smoothing: Option<f64>,
-    /// With --delay-trace: two more delay loops beside the navigator's, fed
-    /// the oracle navigator's acceleration and the true acceleration plus
-    /// the accelerometer's noise (their estimates as two more columns, the
-    /// three RMSEs from 20 s printed).
-    #[arg(long)]
-    pub compare_accel: bool,
-    /// With --delay-suite: only these rows (comma-separated names) [default: all].
-    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
-    pub rows: Option<Vec<String>>,
-    /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
-    /// delay loop on, `GainFusionConfig::rate_std` in ms/s, in every row
-    /// [default: the loop's, off].
-    #[arg(long, value_name = "MS_PER_S")]
-    pub delay_rate_std: Option<f64>,
-    /// With --delay-suite or --delay-trace: `GainFusionConfig::rate_time_constant_s`, s, in
-    /// every row [default: the loop's].
-    #[arg(long, value_name = "S")]
-    pub delay_rate_time_constant: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
-    #[arg(long, value_name = "MS2_PER_S")]
-    pub delay_process_noise: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_window_s` (the horizon innovations' observation), s; 0
-    /// turns it off [default: the loop's].
-    #[arg(long, value_name = "S")]
-    pub delay_innovation_window: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_noise_scale` [default: the loop's].
-    #[arg(long, value_name = "FACTOR")]
-    pub delay_innovation_noise_scale: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_reacquire_sigma` (0: off) [default: the loop's].
-    #[arg(long, value_name = "SIGMA")]
-    pub delay_innovation_reacquire_sigma: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_before_lock` on (fuse the innovation windows before
-    /// lock too, each when it agrees with the previous one).
-    #[arg(long)]
-    pub delay_innovation_before_lock: bool,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `acquisition_motion_exponent` (1 to 4) [default: the loop's].
-    #[arg(long, value_name = "EXPONENT")]
-    pub delay_acquisition_exponent: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `smoothing_cutoff_hz` (both accelerations' common low-pass), Hz
-    /// [default: the loop's; `adapted_to_gps_rate` rows set their own].
-    #[arg(long, value_name = "HZ")]
-    pub delay_smoothing_cutoff: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `innovation_acquire_noise_scale` [default: the loop's].
-    #[arg(long, value_name = "FACTOR")]
-    pub delay_innovation_acquire_noise_scale: Option<f64>,
-    /// With --delay-suite or --delay-trace: the delay loop's
-    /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
-    /// [default: the loop's].
-    #[arg(long, value_name = "MS2")]
-    pub delay_measurement_noise: Option<f64>,
+    /// The delay suite's and the traces' flags.
+    #[command(flatten)]
+    pub delay_flags: DelayFlags,
     /// Run only the bound study instead of the tables: the bound with each
     /// difference to the estimators in turn, beside `oracle` and `proposed`.
     #[arg(long)]

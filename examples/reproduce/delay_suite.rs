@@ -12,20 +12,109 @@ use std::error::Error;
 use std::io::Write as _;
 use std::path::PathBuf;
 
+/// The delay suite's and the traces' flags (in `Args`, `--delay-trace` to
+/// `--delay-measurement-noise`).
+#[derive(Debug, clap::Args)]
+pub struct DelayFlags {
+    /// Write a per-second trace of the delay suite's row ROW (seed --seed,
+    /// with --delay-rate-std / --delay-rate-time-constant) as CSV to --csv
+    /// (a file here) [default: target/delay-trace/ROW-seedS.csv];
+    /// `aekf17_hover` traces AEKF17 (--duration sets the hover's length);
+    /// `calibrated_low` and `calibrated_high` trace the runs of
+    /// `sigma_coverage`.
+    #[arg(long, value_name = "ROW")]
+    delay_trace: Option<String>,
+    /// With --delay-trace aekf17_hover: AEKF17's `delay_random_walk` [default: its own].
+    #[arg(long, value_name = "S_PER_SQRT_S")]
+    aekf17_delay_random_walk: Option<f64>,
+    /// With --delay-trace aekf17_hover: AEKF17's `accel_smoothing_s` (0: the
+    /// paper's last sample) [default: its own].
+    #[arg(long, value_name = "S")]
+    aekf17_accel_smoothing: Option<f64>,
+    /// With --delay-trace: two more delay loops beside the navigator's, fed
+    /// the oracle navigator's acceleration and the true acceleration plus
+    /// the accelerometer's noise (their estimates as two more columns, the
+    /// three RMSEs from 20 s printed).
+    #[arg(long)]
+    compare_accel: bool,
+    /// With --delay-suite: only these rows (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
+    rows: Option<Vec<String>>,
+    /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
+    /// delay loop on, `GainFusionConfig::rate_std` in ms/s, in every row
+    /// [default: the loop's, off].
+    #[arg(long, value_name = "MS_PER_S")]
+    delay_rate_std: Option<f64>,
+    /// With --delay-suite or --delay-trace: `GainFusionConfig::rate_time_constant_s`, s, in
+    /// every row [default: the loop's].
+    #[arg(long, value_name = "S")]
+    delay_rate_time_constant: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `process_noise_ms2_per_s` (`q`), ms^2/s, in every row [default: the loop's].
+    #[arg(long, value_name = "MS2_PER_S")]
+    delay_process_noise: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_window_s` (the horizon innovations' observation), s; 0
+    /// turns it off [default: the loop's].
+    #[arg(long, value_name = "S")]
+    delay_innovation_window: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    delay_innovation_noise_scale: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_reacquire_sigma` (0: off) [default: the loop's].
+    #[arg(long, value_name = "SIGMA")]
+    delay_innovation_reacquire_sigma: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_before_lock` on (fuse the innovation windows before
+    /// lock too, each when it agrees with the previous one).
+    #[arg(long)]
+    delay_innovation_before_lock: bool,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `acquisition_motion_exponent` (1 to 4) [default: the loop's].
+    #[arg(long, value_name = "EXPONENT")]
+    delay_acquisition_exponent: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `smoothing_cutoff_hz` (both accelerations' common low-pass), Hz
+    /// [default: the loop's; `adapted_to_gps_rate` rows set their own].
+    #[arg(long, value_name = "HZ")]
+    delay_smoothing_cutoff: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `innovation_acquire_noise_scale` [default: the loop's].
+    #[arg(long, value_name = "FACTOR")]
+    delay_innovation_acquire_noise_scale: Option<f64>,
+    /// With --delay-suite or --delay-trace: the delay loop's
+    /// `measurement_noise_ms2` (the correlation peaks'), ms^2, every axis
+    /// [default: the loop's].
+    #[arg(long, value_name = "MS2")]
+    delay_measurement_noise: Option<f64>,
+}
+
+impl DelayFlags {
+    /// `--delay-trace`: the row to trace.
+    pub fn trace_row(&self) -> Option<&str> {
+        self.delay_trace.as_deref()
+    }
+}
+
 /// The delay loop's changes that the `--delay-*` flags ask for.
 pub fn tuning(args: &Args) -> LoopTuning {
     LoopTuning {
-        rate_std: args.delay_rate_std.map(|ms_per_s| ms_per_s * 1e-3),
-        rate_time_constant_s: args.delay_rate_time_constant,
-        process_noise_ms2_per_s: args.delay_process_noise,
-        innovation_window_s: args.delay_innovation_window,
-        innovation_noise_scale: args.delay_innovation_noise_scale,
-        innovation_reacquire_sigma: args.delay_innovation_reacquire_sigma,
-        innovation_before_lock: args.delay_innovation_before_lock,
-        innovation_acquire_noise_scale: args.delay_innovation_acquire_noise_scale,
-        measurement_noise_ms2: args.delay_measurement_noise,
-        acquisition_motion_exponent: args.delay_acquisition_exponent,
-        smoothing_cutoff_hz: args.delay_smoothing_cutoff,
+        rate_std: args
+            .delay_flags
+            .delay_rate_std
+            .map(|ms_per_s| ms_per_s * 1e-3),
+        rate_time_constant_s: args.delay_flags.delay_rate_time_constant,
+        process_noise_ms2_per_s: args.delay_flags.delay_process_noise,
+        innovation_window_s: args.delay_flags.delay_innovation_window,
+        innovation_noise_scale: args.delay_flags.delay_innovation_noise_scale,
+        innovation_reacquire_sigma: args.delay_flags.delay_innovation_reacquire_sigma,
+        innovation_before_lock: args.delay_flags.delay_innovation_before_lock,
+        innovation_acquire_noise_scale: args.delay_flags.delay_innovation_acquire_noise_scale,
+        measurement_noise_ms2: args.delay_flags.delay_measurement_noise,
+        acquisition_motion_exponent: args.delay_flags.delay_acquisition_exponent,
+        smoothing_cutoff_hz: args.delay_flags.delay_smoothing_cutoff,
     }
 }
 
@@ -33,7 +122,7 @@ pub fn tuning(args: &Args) -> LoopTuning {
 /// tuning; an error names a row the suite does not have.
 pub fn options(args: &Args, seeds_n: u64) -> Result<DelayOptions, String> {
     let mut options = DelayOptions::full(args.seed, seeds_n);
-    if let Some(names) = &args.rows {
+    if let Some(names) = &args.delay_flags.rows {
         if let Some(n) = names.iter().find(|n| delay::row_name(n).is_none()) {
             return Err(format!(
                 "--rows: no row {n:?} (rows: {})",
@@ -60,7 +149,7 @@ pub fn run(args: &Args, seeds_n: u64, progress: ProgressFn) -> Result<(), Box<dy
 
 /// Where `--delay-trace` writes (its directory created).
 fn trace_path(args: &Args) -> std::io::Result<PathBuf> {
-    let row = args.delay_trace.as_deref().unwrap_or("trace");
+    let row = args.delay_flags.delay_trace.as_deref().unwrap_or("trace");
     let path = args.csv.clone().unwrap_or_else(|| {
         PathBuf::from(format!("target/delay-trace/{row}-seed{}.csv", args.seed))
     });
@@ -72,15 +161,15 @@ fn trace_path(args: &Args) -> std::io::Result<PathBuf> {
 
 /// `--delay-trace ROW`: the row's run on `--seed` as CSV, its figures on stderr.
 pub fn trace(args: &Args) -> Result<(), Box<dyn Error>> {
-    let row = args.delay_trace.clone().unwrap_or_default();
+    let row = args.delay_flags.delay_trace.clone().unwrap_or_default();
     let seed = args.seed;
     let path = trace_path(args)?;
     let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
     if row == "aekf17_hover" {
         let setup = HoverSetup {
             duration_s: args.duration,
-            delay_random_walk: args.aekf17_delay_random_walk,
-            accel_smoothing_s: args.aekf17_accel_smoothing,
+            delay_random_walk: args.delay_flags.aekf17_delay_random_walk,
+            accel_smoothing_s: args.delay_flags.aekf17_accel_smoothing,
         };
         let end = delay::write_hover_trace(seed, &setup, &mut out)?;
         out.flush()?;
@@ -95,7 +184,7 @@ pub fn trace(args: &Args) -> Result<(), Box<dyn Error>> {
         row: row.clone(),
         seed,
         tuning: tuning(args),
-        compare_accel: args.compare_accel,
+        compare_accel: args.delay_flags.compare_accel,
         filter_rate_hz: args.filter_rate_hz,
     };
     let Some(summary) = delay::write_trace(&options, &mut out)? else {
@@ -198,8 +287,11 @@ mod tests {
             "--delay-rate-std",
             "1",
         ]);
-        assert_eq!(args.delay_trace.as_deref(), Some("cold_start_high"));
-        assert!(args.compare_accel && args.seed == 2);
+        assert_eq!(
+            args.delay_flags.delay_trace.as_deref(),
+            Some("cold_start_high")
+        );
+        assert!(args.delay_flags.compare_accel && args.seed == 2);
         assert_eq!(tuning(&args).rate_std, Some(1e-3));
         let hover = parse(&[
             "--delay-trace",
@@ -212,7 +304,7 @@ mod tests {
             "0",
         ]);
         assert_eq!(hover.duration, Some(30.0));
-        assert_eq!(hover.aekf17_delay_random_walk, Some(0.0));
-        assert_eq!(hover.aekf17_accel_smoothing, Some(0.0));
+        assert_eq!(hover.delay_flags.aekf17_delay_random_walk, Some(0.0));
+        assert_eq!(hover.delay_flags.aekf17_accel_smoothing, Some(0.0));
     }
 }

@@ -121,7 +121,9 @@ fn enforce(verdicts: &[Verdict], known: &[String]) -> Result<(), Box<dyn Error>>
 
 fn main() -> Result<(), Box<dyn Error>> {
     let args = Args::parse();
-    if args.check && (args.sweep.is_some() || args.bound_study || args.delay_trace.is_some()) {
+    if args.check
+        && (args.sweep.is_some() || args.bound_study || args.delay_flags.trace_row().is_some())
+    {
         return Err("--check applies to the default run, --faults and --delay-suite".into());
     }
     let reporter = Reporter::new();
@@ -156,7 +158,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         )
         .into());
     }
-    if args.delay_trace.is_some() {
+    if args.delay_flags.trace_row().is_some() {
         return delay_suite::trace(&args);
     }
     if args.delay_suite {
