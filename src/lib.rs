@@ -56,6 +56,27 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+/// Unit tests in both precisions: `tests_in_both_precisions!(a, b)` makes the
+/// tests `in_f32::a`, `in_f64::a`, `in_f32::b`, ... calling the generic test bodies
+/// `a::<f32>()`, `a::<f64>()`, ... of the enclosing module.
+#[cfg(test)]
+macro_rules! tests_in_both_precisions {
+    ($($name:ident),+ $(,)?) => {
+        mod in_f32 {
+            $(#[test]
+            fn $name() {
+                super::$name::<f32>();
+            })+
+        }
+        mod in_f64 {
+            $(#[test]
+            fn $name() {
+                super::$name::<f64>();
+            })+
+        }
+    };
+}
+
 pub mod aekf17;
 pub mod delay;
 pub mod ekf16;

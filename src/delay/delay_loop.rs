@@ -500,13 +500,5 @@ mod tests {
         assert_eq!(acquiring_window_variance(&config, window, far), None);
     }
 
-    #[test]
-    fn acquiring_window_rules_f32() {
-        acquiring_window_rules::<f32>();
-    }
-
-    #[test]
-    fn acquiring_window_rules_f64() {
-        acquiring_window_rules::<f64>();
-    }
+    tests_in_both_precisions!(acquiring_window_rules);
 }

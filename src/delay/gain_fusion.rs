@@ -576,43 +576,10 @@ mod tests {
         assert!((f.variance_s2().as_f64() - 2.25e-4).abs() < 1e-8);
     }
 
-    #[test]
-    fn extra_measurement_f32() {
-        extra_measurement::<f32>();
-    }
-
-    #[test]
-    fn extra_measurement_f64() {
-        extra_measurement::<f64>();
-    }
-
-    #[test]
-    fn long_gaps_stay_finite_f32() {
-        long_gaps_stay_finite::<f32>();
-    }
-
-    #[test]
-    fn long_gaps_stay_finite_f64() {
-        long_gaps_stay_finite::<f64>();
-    }
-
-    #[test]
-    fn steady_input_keeps_the_variance_f32() {
-        steady_input_keeps_the_variance::<f32>();
-    }
-
-    #[test]
-    fn steady_input_keeps_the_variance_f64() {
-        steady_input_keeps_the_variance::<f64>();
-    }
-
-    #[test]
-    fn ramp_is_followed_f32() {
-        ramp_is_followed::<f32>();
-    }
-
-    #[test]
-    fn ramp_is_followed_f64() {
-        ramp_is_followed::<f64>();
-    }
+    tests_in_both_precisions!(
+        extra_measurement,
+        long_gaps_stay_finite,
+        steady_input_keeps_the_variance,
+        ramp_is_followed
+    );
 }

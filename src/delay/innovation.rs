@@ -222,7 +222,7 @@ mod tests {
 
     /// A filter that takes the fix only weakly (large noise): the
     /// innovations are the delay's own, and the window finds it.
-    fn synthetic<T: Scalar>() {
+    fn synthetic_delay_is_found<T: Scalar>() {
         let tau = 0.2;
         let tau_hat = 0.1;
         let mut est = InnovationDelay::<T>::BLANK;
@@ -364,23 +364,5 @@ mod tests {
         assert!((naive - tau).abs() > 0.35 * (tau - tau_hat), "{naive}");
     }
 
-    #[test]
-    fn absorbing_filter_f32() {
-        absorbing_filter::<f32>();
-    }
-
-    #[test]
-    fn absorbing_filter_f64() {
-        absorbing_filter::<f64>();
-    }
-
-    #[test]
-    fn synthetic_delay_is_found_f32() {
-        synthetic::<f32>();
-    }
-
-    #[test]
-    fn synthetic_delay_is_found_f64() {
-        synthetic::<f64>();
-    }
+    tests_in_both_precisions!(absorbing_filter, synthetic_delay_is_found);
 }

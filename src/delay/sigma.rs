@@ -177,13 +177,5 @@ mod tests {
         );
     }
 
-    #[test]
-    fn match_starts_as_a_mean_f32() {
-        match_starts_as_a_mean::<f32>();
-    }
-
-    #[test]
-    fn match_starts_as_a_mean_f64() {
-        match_starts_as_a_mean::<f64>();
-    }
+    tests_in_both_precisions!(match_starts_as_a_mean);
 }

@@ -533,13 +533,5 @@ mod tests {
         );
     }
 
-    #[test]
-    fn timing_noise_widens_the_fix_f32() {
-        timing_noise_widens_the_fix::<f32>();
-    }
-
-    #[test]
-    fn timing_noise_widens_the_fix_f64() {
-        timing_noise_widens_the_fix::<f64>();
-    }
+    tests_in_both_precisions!(timing_noise_widens_the_fix);
 }

@@ -194,13 +194,5 @@ mod queue_tests {
         assert_eq!(three.field_body.y.as_f64(), 1.0);
     }
 
-    #[test]
-    fn pairs_are_averaged_f32() {
-        pairs_are_averaged::<f32>();
-    }
-
-    #[test]
-    fn pairs_are_averaged_f64() {
-        pairs_are_averaged::<f64>();
-    }
+    tests_in_both_precisions!(pairs_are_averaged);
 }
