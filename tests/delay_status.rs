@@ -225,3 +225,25 @@ fn range_beyond_capacity_is_refused() {
         Err(Error::InvalidConfig { .. })
     ));
 }
+
+/// Only `Locked` is locked, only the two range statuses are out of range.
+#[test]
+fn status_predicates_name_one_state_each() {
+    use delaynav::DelayStatus;
+    let edge = |edge_s| DelayStatus::<f64>::BelowRange { edge_s, peak: 0.9 };
+    let all = [
+        DelayStatus::WaitingForData,
+        DelayStatus::WaitingForMotion,
+        DelayStatus::Acquiring,
+        DelayStatus::Locked,
+        edge(0.0),
+        DelayStatus::AboveRange {
+            edge_s: 1.0,
+            peak: 0.9,
+        },
+    ];
+    let locked: Vec<bool> = all.iter().map(DelayStatus::is_locked).collect();
+    assert_eq!(locked, [false, false, false, true, false, false]);
+    let out: Vec<bool> = all.iter().map(DelayStatus::is_out_of_range).collect();
+    assert_eq!(out, [false, false, false, false, true, true]);
+}
