@@ -404,3 +404,58 @@ fn a_path_compares_equal_to_its_text_and_the_error_stays_small() {
     // bytes before the paths, 64 with them).
     assert!(core::mem::size_of::<Error>() <= 64);
 }
+
+/// The ceilings found by the fuzz targets: each value was accepted before
+/// and broke the `f32` state (docs/faults.md); the largest accepted value
+/// and the smallest refused one of each.
+fn magnitude_ceilings<T: Scalar>() {
+    type Set<T> = fn(&mut Ekf16Config<T>, T);
+    let cases: [(&str, Set<T>, f64, f64); 5] = [
+        (
+            "initial_position_std_m",
+            |c, v| c.initial_position_std_m = v,
+            1e7,
+            1e30,
+        ),
+        (
+            "initial_tilt_std_rad",
+            |c, v| c.initial_tilt_std_rad = v,
+            3.1,
+            10_001.0,
+        ),
+        (
+            "gyro_bias_random_walk",
+            |c, v| c.gyro_bias_random_walk = v,
+            1.0,
+            1e30,
+        ),
+        (
+            "accel_noise_density",
+            |c, v| c.accel_noise_density = v,
+            10.0,
+            1e4,
+        ),
+        (
+            "gyro_noise_density",
+            |c, v| c.gyro_noise_density = v,
+            1.0,
+            1.5,
+        ),
+    ];
+    for (field, set, accepted, refused) in cases {
+        let mut c = Ekf16Config::<T>::default();
+        set(&mut c, T::lit(accepted));
+        assert_eq!(c.validate(), Ok(()), "{field} = {accepted}");
+        set(&mut c, T::lit(refused));
+        match c.validate() {
+            Err(Error::InvalidConfig { field: f, .. }) => assert_eq!(f, field),
+            other => panic!("{field} = {refused}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn magnitudes_that_broke_the_f32_state_are_refused() {
+    magnitude_ceilings::<f32>();
+    magnitude_ceilings::<f64>();
+}

@@ -102,6 +102,44 @@ pub(crate) enum Op {
     Reset,
     /// Plausible flight for this many ms from the cursor.
     Calm(u32),
+    /// The health value (the navigator's; a no-op for the EKFs): its
+    /// figures must be finite and its std not negative.
+    Health,
+    /// `configure` with the estimator's own configuration, one field
+    /// ([`set_field`]'s list, `field` modulo its length) changed.
+    /// Refused or accepted, the state must stay sound.
+    Configure {
+        field: u8,
+        value: Setting,
+    },
+}
+
+/// How [`Op::Configure`] changes its field.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Setting {
+    /// Multiplied by this (a plausible tuning: 0.1 to 10 in the machines).
+    Scale(f64),
+    /// Set to this (NaN, infinities and the largest floats included).
+    Set(f64),
+}
+
+impl Setting {
+    fn apply<T: Scalar>(self, field: &mut T) {
+        *field = match self {
+            Setting::Scale(k) => *field * T::lit(k),
+            Setting::Set(v) => T::lit(v),
+        };
+    }
+
+    fn apply_count<N: TryFrom<u64> + Into<u64> + Copy>(self, field: &mut N) {
+        let v = match self {
+            Setting::Scale(k) => ((*field).into() as f64 * k) as u64,
+            Setting::Set(v) => v as u64,
+        };
+        if let Ok(v) = N::try_from(v) {
+            *field = v;
+        }
+    }
 }
 
 /// Time steps; `full` adds jumps ahead of an hour and more (1 h, 10 h,
@@ -132,25 +170,28 @@ fn time(full: bool) -> impl Strategy<Value = Time> {
 /// A value no sensor should report; `max` adds the largest floats
 /// (`f32::MAX`, `f64::MAX`).
 fn hostile(max: bool) -> impl Strategy<Value = f64> {
-    let values = [
-        f64::NAN,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        1e30,
-        -1e30,
-        0.0,
-        1e-30,
-        1e4 + 1.0,
-    ];
-    let largest = [f32::MAX as f64, -(f32::MAX as f64), f64::MAX];
-    let n = values.len() + if max { largest.len() } else { 0 };
+    let n = HOSTILE.len() + if max { LARGEST.len() } else { 0 };
     (0..n).prop_map(move |i| {
-        values
+        HOSTILE
             .get(i)
             .copied()
-            .unwrap_or_else(|| largest[i - values.len()])
+            .unwrap_or_else(|| LARGEST[i - HOSTILE.len()])
     })
 }
+
+/// The values of [`hostile`] (also the fuzz targets').
+pub(crate) const HOSTILE: [f64; 8] = [
+    f64::NAN,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    1e30,
+    -1e30,
+    0.0,
+    1e-30,
+    1e4 + 1.0,
+];
+/// The largest floats of [`hostile`]`(true)`.
+pub(crate) const LARGEST: [f64; 3] = [f32::MAX as f64, -(f32::MAX as f64), f64::MAX];
 
 /// `center ± spread` per axis, each axis hostile one time in twenty.
 fn vec3(center: [f64; 3], spread: f64, max: bool) -> impl Strategy<Value = [f64; 3]> {
@@ -225,6 +266,15 @@ fn op(full: bool) -> impl Strategy<Value = Op> {
         1 => Just(Op::Estimate),
         1 => Just(Op::Reset),
         1 => (1u32..=400).prop_map(Op::Calm),
+        1 => Just(Op::Health),
+        1 => (
+            any::<u8>(),
+            prop_oneof![
+                3 => (0.1f64..10.0).prop_map(Setting::Scale),
+                1 => hostile(true).prop_map(Setting::Set),
+            ]
+        )
+            .prop_map(|(field, value)| Op::Configure { field, value }),
     ]
 }
 
@@ -247,6 +297,44 @@ pub(crate) trait Subject<T: Scalar>: Navigator<T> {
     fn gps_refusals(&self) -> u64;
     /// `reset()` where the estimator has one (a no-op otherwise).
     fn reset(&mut self) {}
+    /// `configure` with the estimator's configuration, field `field` set to
+    /// `value` ([`set_field`]); true when accepted.
+    fn configure_field(&mut self, field: u8, value: Setting) -> bool;
+    /// The health value's figures are sound (where the estimator has one).
+    fn health_sound(&self) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// Changes one field of a filter configuration: `field` picks it (modulo
+/// the list), `value` says how (the integer fields are truncated).
+pub(crate) fn set_field<T: Scalar>(c: &mut Ekf16Config<T>, field: u8, value: Setting) {
+    let fields: [&mut T; 14] = [
+        &mut c.gyro_noise_density,
+        &mut c.accel_noise_density,
+        &mut c.gyro_bias_random_walk,
+        &mut c.accel_bias_random_walk,
+        &mut c.gps_horizontal_std_m,
+        &mut c.gps_vertical_std_m,
+        &mut c.gps_velocity_std_m_s,
+        &mut c.mag_noise_variance,
+        &mut c.mag_inclination_rad,
+        &mut c.gps_position_gate,
+        &mut c.mag_gate,
+        &mut c.max_gyro_rad_s,
+        &mut c.initial_tilt_std_rad,
+        &mut c.initial_position_std_m,
+    ];
+    let n = fields.len() + 2;
+    match usize::from(field) % n {
+        i if i < n - 2 => {
+            if let Some(f) = fields.into_iter().nth(i) {
+                value.apply(f);
+            }
+        }
+        i if i == n - 2 => value.apply_count(&mut c.max_imu_step_us),
+        _ => value.apply_count(&mut c.align_window),
+    }
 }
 
 /// Sum of the fields of a counters struct, destructured exhaustively: a new
@@ -351,6 +439,11 @@ impl<T: Scalar> Subject<T> for Ekf16<T> {
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
         (*self.state_vector(), dynamic(self.covariance()))
     }
+    fn configure_field(&mut self, field: u8, value: Setting) -> bool {
+        let mut c = *self.config();
+        set_field(&mut c, field, value);
+        self.configure(c).is_ok()
+    }
 }
 
 impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
@@ -363,6 +456,16 @@ impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
     fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
         let x = self.state_vector().fixed_rows::<16>(0).into_owned();
         (x, dynamic(self.covariance()))
+    }
+    fn configure_field(&mut self, field: u8, value: Setting) -> bool {
+        let mut c = *self.config();
+        match field % 4 {
+            0 => value.apply(&mut c.initial_delay_s),
+            1 => value.apply(&mut c.max_delay_s),
+            2 => value.apply(&mut c.delay_random_walk),
+            _ => set_field(&mut c.nav, field / 4, value),
+        }
+        self.configure(c).is_ok()
     }
 }
 
@@ -380,11 +483,45 @@ impl<T: Scalar> Subject<T> for DelayCompensatedNav<T> {
     fn reset(&mut self) {
         DelayCompensatedNav::reset(self);
     }
+    fn configure_field(&mut self, field: u8, value: Setting) -> bool {
+        let mut c = *self.config();
+        match field % 8 {
+            0 => match &mut c.mode {
+                DelayMode::Fixed { delay_s } => value.apply(delay_s),
+                DelayMode::Estimated { initial_s } => value.apply(initial_s),
+            },
+            1 => value.apply(&mut c.imu_rate_hz),
+            2 => value.apply(&mut c.filter_rate_hz),
+            3 => value.apply(&mut c.max_horizon_step_ratio),
+            4 => value.apply_count(&mut c.max_time_jump_us),
+            5 => value.apply(&mut c.delay_loop.min_peak),
+            6 => value.apply(&mut c.delay_loop.correlation_rate_hz),
+            _ => set_field(&mut c.ekf, field / 8, value),
+        }
+        self.configure(c).is_ok()
+    }
+    fn health_sound(&self) -> Result<(), String> {
+        let h = self.health();
+        let d = h.delay;
+        if !d.delay_s.is_finite() || !d.delay_std_s.is_finite() || d.delay_std_s < T::zero() {
+            return Err(format!(
+                "health: delay {:?} std {:?}",
+                d.delay_s, d.delay_std_s
+            ));
+        }
+        if h.refusals != self.refusals() {
+            return Err("health: refusals differ from refusals()".into());
+        }
+        Ok(())
+    }
 }
 
-/// Refusals a call's result stands for.
+/// Refusals a call's result stands for. `Error::NotConfigured` is not
+/// counted: the estimator refuses everything after a `configure` that
+/// returned an error, and that error was the report.
 fn refusals_of<R>(result: &Result<R, Error>, gated: impl Fn(&R) -> u64) -> u64 {
     match result {
+        Err(Error::NotConfigured) => 0,
         Err(_) => 1,
         Ok(r) => gated(r),
     }
@@ -463,6 +600,21 @@ pub(crate) struct Driver<T: Scalar, S: Subject<T>> {
 }
 
 impl<T: Scalar, S: Subject<T>> Driver<T, S> {
+    fn new(s: S, cursor: u64) -> Self {
+        Driver {
+            s,
+            cursor,
+            calls: 0,
+            estimated_calls: 0,
+            _t: core::marker::PhantomData,
+        }
+    }
+
+    /// The estimator and the newest time pushed.
+    pub(crate) fn into_parts(self) -> (S, u64) {
+        (self.s, self.cursor)
+    }
+
     fn time(&mut self, t: Time) -> u64 {
         let t = match t {
             Time::After(dt) => self.cursor.saturating_add(dt),
@@ -601,6 +753,17 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
                 0
             }),
             Op::Calm(ms) => self.calm(ms),
+            Op::Health => self
+                .s
+                .health_sound()
+                .map_err(|e| TestCaseError::fail(format!("call {}: {e}", self.calls))),
+            // `configure` restarts the estimator, counters included (as
+            // `new` builds it): only the state is checked.
+            Op::Configure { field, value } => {
+                self.calls += 1;
+                self.s.configure_field(field, value);
+                check_state(&self.s, "configure")
+            }
         }
     }
 }
@@ -680,22 +843,34 @@ fn minimize<T: Scalar, S: Subject<T>>(
     (start, ops)
 }
 
+/// The cursor of a fresh case, µs: the calm start begins here.
+pub(crate) const START_US: u64 = 1_000_000;
+
 /// One case: the calm start, then the operations, checked after every call.
 pub(crate) fn replay<T: Scalar, S: Subject<T>>(
     s: S,
     start: Option<u32>,
     ops: &[Op],
 ) -> Result<Driver<T, S>, TestCaseError> {
-    let mut d = Driver {
-        s,
-        cursor: 1_000_000,
-        calls: 0,
-        estimated_calls: 0,
-        _t: core::marker::PhantomData,
-    };
+    let mut d = Driver::new(s, START_US);
     if let Some(ms) = start {
         d.calm(ms)?;
     }
+    for &op in ops {
+        d.apply(op)?;
+    }
+    Ok(d)
+}
+
+/// The operations applied to an estimator whose newest time is `cursor`
+/// (a state saved after a calm start: the fuzz targets start from such
+/// snapshots instead of flying the calm start again in every execution).
+pub(crate) fn replay_from<T: Scalar, S: Subject<T>>(
+    s: S,
+    cursor: u64,
+    ops: &[Op],
+) -> Result<Driver<T, S>, TestCaseError> {
+    let mut d = Driver::new(s, cursor);
     for &op in ops {
         d.apply(op)?;
     }
@@ -1118,4 +1293,25 @@ fn nav_huge_ned_fix() {
         failures.push(format!("f64 nav fixed: {e}"));
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The fuzz targets start from saved states: a case from a saved calm start
+/// ends where the same case from scratch does.
+#[test]
+fn saved_start_replays_like_a_calm_start() {
+    let ops = [
+        Op::Calm(150),
+        level_imu(Time::After(1_000)),
+        Op::Health,
+        Op::Calm(200),
+    ];
+    let (saved, cursor) = replay(f32_::nav_estimated(), Some(700), &[])
+        .expect("calm start")
+        .into_parts();
+    let from_saved = replay_from(saved, cursor, &ops).expect("from the saved start");
+    let from_scratch = replay(f32_::nav_estimated(), Some(700), &ops).expect("from scratch");
+    let (a, b) = (from_saved.into_parts(), from_scratch.into_parts());
+    assert_eq!(a.1, b.1);
+    assert!(a.0.estimate().is_some());
+    assert_eq!(a.0.estimate(), b.0.estimate());
 }

@@ -2,7 +2,9 @@
 //! whole log through the public reader API (every sample, the reference,
 //! the counts). Any panic is a finding; errors are expected.
 
-use delaynav::replay::{ArduPilotImu, LogFiles, LogFormat, LogReader, ReaderOptions, ReferenceReader};
+use delaynav::replay::{
+    ArduPilotImu, LogFiles, LogFormat, LogReader, ReaderOptions, ReferenceReader,
+};
 use std::path::{Path, PathBuf};
 
 /// A scratch directory for this fuzzing process.

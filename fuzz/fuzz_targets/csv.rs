@@ -9,7 +9,10 @@ use delaynav::replay::LogFormat;
 use libfuzzer_sys::fuzz_target;
 
 const LAYOUTS: [(LogFormat, &[&str]); 3] = [
-    (LogFormat::Crate, &["imu.csv", "gps.csv", "mag.csv", "truth.csv"]),
+    (
+        LogFormat::Crate,
+        &["imu.csv", "gps.csv", "mag.csv", "truth.csv"],
+    ),
     (
         LogFormat::ArduPilot,
         &[

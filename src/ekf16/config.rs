@@ -57,6 +57,12 @@ pub const DEFAULT_GPS_NIS_BOUND: f64 = 20.0;
 pub const DEFAULT_GPS_NIS_WINDOW: u32 = 20;
 /// The paper's IMU rate, Hz.
 pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
+/// The largest noise density, standard deviation or limit a configuration
+/// may hold, in its own unit (m, m/s, rad/s, ...): `1e7`. Any physical
+/// figure is far below it, and its square stays far from `f32`'s range in
+/// the filter's sums (an initial position standard deviation of `1e30` m
+/// was accepted, and every fix then failed to initialize in `f32`).
+pub const MAX_MAGNITUDE: f64 = 1e7;
 
 /// Everything the 16-state EKF needs to know that is not a sensor sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,13 +71,13 @@ pub const PAPER_IMU_RATE_HZ: f64 = 1000.0;
 pub struct Ekf16Config<T: Scalar> {
     /// Gravity magnitude, m/s^2 (NED: `[0, 0, +g]`).
     pub gravity_m_s2: T,
-    /// Gyro white-noise density, rad/s/√Hz.
+    /// Gyro white-noise density, rad/s/√Hz (positive, at most 1).
     pub gyro_noise_density: T,
-    /// Accelerometer white-noise density, m/s^2/√Hz.
+    /// Accelerometer white-noise density, m/s^2/√Hz (positive, at most 10).
     pub accel_noise_density: T,
-    /// Gyro bias random walk, rad/s/√s.
+    /// Gyro bias random walk, rad/s/√s (in [0, 1]).
     pub gyro_bias_random_walk: T,
-    /// Accelerometer bias random walk, m/s^2/√s.
+    /// Accelerometer bias random walk, m/s^2/√s (in [0, 1]).
     pub accel_bias_random_walk: T,
 
     /// GPS horizontal position noise (1 sigma, north and east), m.
@@ -169,11 +175,11 @@ pub struct Ekf16Config<T: Scalar> {
     pub align_window: u32,
     /// IMU samples needed before a GPS fix may initialize the filter.
     pub align_min_samples: u32,
-    /// Initial roll and pitch standard deviation, rad.
+    /// Initial roll and pitch standard deviation, rad (in (0, pi]).
     pub initial_tilt_std_rad: T,
-    /// Initial yaw standard deviation with a magnetometer heading, rad.
+    /// Initial yaw standard deviation with a magnetometer heading, rad (in (0, pi]).
     pub initial_yaw_std_rad: T,
-    /// Initial yaw standard deviation without magnetometer (yaw set to 0), rad.
+    /// Initial yaw standard deviation without magnetometer (yaw set to 0), rad (in (0, pi]).
     pub initial_yaw_std_no_mag_rad: T,
     /// Initial position standard deviation per axis, m.
     pub initial_position_std_m: T,
@@ -306,7 +312,8 @@ impl<T: Scalar> Ekf16Config<T> {
     /// Checks every field; the first offending one is named in the error
     /// with its value and the bound it broke.
     pub fn validate(&self) -> Result<(), Error> {
-        // Densities, standard deviations and limits: positive and finite.
+        // Densities, standard deviations and limits: positive and at most
+        // MAX_MAGNITUDE.
         for (field, v) in [
             ("gravity_m_s2", self.gravity_m_s2),
             ("gyro_noise_density", self.gyro_noise_density),
@@ -330,9 +337,10 @@ impl<T: Scalar> Ekf16Config<T> {
             ),
         ] {
             check::positive_finite(field, v)?;
+            check::at_most(field, v, T::lit(MAX_MAGNITUDE))?;
         }
-        // Gates, tolerances, the NIS bound and the attitude standard
-        // deviations: positive, +inf allowed (no check).
+        // Gates, tolerances and the NIS bound: positive, +inf allowed (no
+        // check).
         for (field, v) in [
             ("gps_position_gate", self.gps_position_gate),
             ("gps_velocity_gate", self.gps_velocity_gate),
@@ -347,6 +355,13 @@ impl<T: Scalar> Ekf16Config<T> {
                 self.mag_inclination_tolerance_rad,
             ),
             ("gps_nis_bound", self.gps_nis_bound),
+        ] {
+            check::positive(field, v)?;
+        }
+        // The attitude standard deviations: positive and at most pi (an
+        // angle's error says nothing beyond it; a larger one made the f32
+        // covariance lose its sign after the first fix).
+        for (field, v) in [
             ("initial_tilt_std_rad", self.initial_tilt_std_rad),
             ("initial_yaw_std_rad", self.initial_yaw_std_rad),
             (
@@ -355,9 +370,32 @@ impl<T: Scalar> Ekf16Config<T> {
             ),
         ] {
             check::positive(field, v)?;
+            check::at_most(field, v, T::pi())?;
         }
-        check::not_negative("gyro_bias_random_walk", self.gyro_bias_random_walk)?;
-        check::not_negative("accel_bias_random_walk", self.accel_bias_random_walk)?;
+        // Noise densities: at most 1 rad/s/√Hz and 10 m/s^2/√Hz, a hundred
+        // times the noisiest consumer MEMS part; 1e4 let the covariance of
+        // an IMU gap leave f32's range.
+        check::at_most("gyro_noise_density", self.gyro_noise_density, T::one())?;
+        check::at_most(
+            "accel_noise_density",
+            self.accel_noise_density,
+            T::lit(10.0),
+        )?;
+        // Bias random walks: in [0, 1] per √s. A bias whose standard
+        // deviation grows by one rad/s or m/s^2 in a second is no bias, and
+        // 1e30 let the covariance overflow within a second.
+        check::within(
+            "gyro_bias_random_walk",
+            self.gyro_bias_random_walk,
+            T::zero(),
+            T::one(),
+        )?;
+        check::within(
+            "accel_bias_random_walk",
+            self.accel_bias_random_walk,
+            T::zero(),
+            T::one(),
+        )?;
         for (field, v) in [
             ("lever_arm_m.x", self.lever_arm_m.x),
             ("lever_arm_m.y", self.lever_arm_m.y),
