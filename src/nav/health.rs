@@ -24,8 +24,8 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
-use crate::ekf16::GpsReset;
 use crate::ekf16::state::{POS, VEL};
+use crate::ekf16::{GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
 use crate::scalar::Scalar;
 
@@ -128,6 +128,9 @@ pub struct Health<T: Scalar> {
     pub refusals: NavRefusals,
     /// The delay's status.
     pub delay: DelayHealth<T>,
+    /// The horizon filter's magnetometer fusion mode (3-axis, heading only,
+    /// none) and the time spent in each.
+    pub mag: MagModeHealth,
 }
 
 impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
@@ -166,6 +169,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 valid_updates: self.valid_delay_updates,
                 status: estimated.then(|| self.delay_loop.status()),
             },
+            mag: self.ekf.mag_modes(),
         }
     }
 

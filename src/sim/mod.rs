@@ -478,12 +478,15 @@ impl Simulation {
 
     fn mag_event(&mut self, t_us: u64) -> SimEvent {
         let rotation = self.trajectory.rotation(t_us as f64 * 1e-6);
+        let sensors = &self.config.sensors;
         let noise = self
             .mag_rng
             .vector(self.config.sensors.mag_noise_var.sqrt());
         SimEvent::Mag(Mag {
             t_us,
-            field_body: rotation.transpose() * self.field_ned + noise,
+            field_body: sensors.mag_soft_iron * (rotation.transpose() * self.field_ned)
+                + sensors.mag_hard_iron
+                + noise,
         })
     }
 

@@ -6,7 +6,7 @@
 //! ```text
 //! gyro_k  = w_b(t_k) + b_g(t_k) + n_g,k + v_g(t_k)        n_g ~ N(0, s_g^2 I)
 //! accel_k = f_b(t_k) + b_a(t_k) + n_a,k + v_a(t_k)        n_a ~ N(0, s_a^2 I)
-//! mag_m   = R(t_m)^T m_n + n_m,m                          n_m ~ N(0, s_m^2 I)
+//! mag_m   = S R(t_m)^T m_n + b_hi + n_m,m                 n_m ~ N(0, s_m^2 I)
 //! gps_j   = [p(t_j - tau_j) + n_p,  v(t_j - tau_j) + n_v]  n_p ~ N(0, s_p^2 I), n_v ~ N(0, s_v^2 I)
 //! ```
 //!
@@ -18,6 +18,9 @@
 //!   walk `b(t_k+1) = b(t_k) + N(0, q dt)` with density `q` per axis.
 //! - `m_n = [cos I cos D, cos I sin D, sin I]` (unit field; Shanghai by
 //!   default: declination -6 deg 2', inclination 47 deg 14').
+//! - Magnetometer calibration errors: a soft-iron matrix `S` (identity by
+//!   default) and a hard-iron offset `b_hi` (body FRD, unit field; zero by
+//!   default), both fixed to the body.
 //! - Motor vibration: harmonics `A_h sin(2 pi f_h t + phi_h,axis)` added to
 //!   gyro and accelerometer, each axis with its own random phase.
 //! - `g` in Table 3's units is standard gravity, 9.80665 m/s^2.
@@ -29,6 +32,7 @@ use crate::ekf16::{
     TABLE3_GPS_VELOCITY_VARIANCE, TABLE3_GYRO_VARIANCE, TABLE3_MAG_VARIANCE,
 };
 use crate::sensors::Geodetic;
+use nalgebra::{Matrix3, Vector3};
 
 /// Allowed IMU rates, Hz.
 pub const IMU_RATE_RANGE_HZ: core::ops::RangeInclusive<f64> = 50.0..=2000.0;
@@ -95,6 +99,10 @@ pub struct SensorConfig {
     pub inclination_rad: f64,
     /// Motor vibration harmonics (none by default).
     pub vibration: Vec<VibrationHarmonic>,
+    /// Magnetometer hard-iron offset `b_hi`, body FRD, unit field (zero by default).
+    pub mag_hard_iron: Vector3<f64>,
+    /// Magnetometer soft-iron matrix `S` (identity by default).
+    pub mag_soft_iron: Matrix3<f64>,
 }
 
 /// Degrees and arc minutes to radians.
@@ -126,6 +134,8 @@ impl Default for SensorConfig {
             declination_rad: deg_min(-6.0, 2.0),
             inclination_rad: deg_min(47.0, 14.0),
             vibration: Vec::new(),
+            mag_hard_iron: Vector3::zeros(),
+            mag_soft_iron: Matrix3::identity(),
         }
     }
 }
@@ -241,6 +251,15 @@ impl SensorConfig {
                 field: "inclination_rad".into(),
                 value: None,
                 bound: crate::error::Bound::Rule("field angles must be finite"),
+            });
+        }
+        if !(self.mag_hard_iron.iter().all(|v| v.is_finite())
+            && self.mag_soft_iron.iter().all(|v| v.is_finite()))
+        {
+            return Err(InvalidConfig {
+                field: "mag_soft_iron".into(),
+                value: None,
+                bound: crate::error::Bound::Rule("hard- and soft-iron terms must be finite"),
             });
         }
         if self.vibration.iter().any(|h| {

@@ -71,7 +71,7 @@ use super::state::{
     ACCEL_BIAS, GYRO_BIAS, NAV_STATES, POS, QUAT, StateVector, VEL, WxyzCoords,
     attitude_covariance, quaternion_of,
 };
-use super::{FilterRefusals, GpsReset, GpsResetCause};
+use super::{FilterRefusals, GpsReset, GpsResetCause, MagModeHealth};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome};
 use crate::geo::{
@@ -91,6 +91,18 @@ use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 /// µs (a gap longer than `max_imu_step_us` is not integrated; `P` grows by
 /// the noise of `min(gap, MAX_GAP_NOISE_US)`).
 pub const MAX_GAP_NOISE_US: u64 = 60_000_000;
+
+/// Time of clean magnetometer samples (never two in a row disturbed or
+/// gated out) before the 3-axis update is used, µs.
+pub const MAG_THREE_AXIS_HOLD_US: u32 = 1_000_000;
+/// Largest difference between the inclination learned at initialization
+/// and the configured one for the 3-axis update, rad (8.6 deg): the 3-axis
+/// update pulls the tilt toward the configured field, so it is used only
+/// when the two agree.
+pub const MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD: f64 = 0.15;
+/// Interval between magnetometer samples beyond which the time counts as
+/// [`MagMode::NoFusion`](super::MagMode::NoFusion), µs.
+pub const MAG_GAP_US: u64 = 1_000_000;
 
 /// One state appended after the 16 navigation states: a random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -285,6 +297,11 @@ macro_rules! core_accessors {
             self.core.last_mag_fused_us()
         }
 
+        /// The magnetometer's fusion mode and the time spent in each.
+        pub fn mag_modes(&self) -> $crate::ekf16::MagModeHealth {
+            self.core.mag_modes()
+        }
+
         /// Counters of refused and gated-out samples.
         pub fn refusals(&self) -> FilterRefusals {
             self.core.refusals()
@@ -373,6 +390,12 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// from horizontal), set at initialization or by the first sample after
     /// it, then followed slowly by the accepted samples.
     mag_field: Option<(T, T)>,
+    /// The magnetometer's mode, switches and time per mode.
+    mag_modes: MagModeHealth,
+    /// Time of the current run of clean samples, µs (saturating).
+    mag_clean_us: u32,
+    /// Consecutive samples not fused (disturbed or gated out).
+    mag_rejected_run: u8,
     refusals: FilterRefusals,
     /// False in [`BLANK`](Self::BLANK) and after a failed
     /// [`configure`](Self::configure): every sample is refused.
@@ -425,6 +448,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
             mag_field: None,
+            mag_modes: MagModeHealth::START,
+            mag_clean_us: 0,
+            mag_rejected_run: 0,
             refusals: FilterRefusals::ZERO,
             configured: false,
         }
@@ -505,6 +531,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;
         self.mag_field = None;
+        self.mag_modes = MagModeHealth::START;
+        self.mag_clean_us = 0;
+        self.mag_rejected_run = 0;
         self.refusals = FilterRefusals::default();
         self.configured = true;
         Ok(())
@@ -633,6 +662,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// Time of the newest fused magnetometer sample, µs.
     pub(crate) fn last_mag_fused_us(&self) -> Option<u64> {
         self.mag_fused_us
+    }
+
+    pub(crate) fn mag_modes(&self) -> MagModeHealth {
+        self.mag_modes
     }
 
     /// Value and variance of extra state `index` (`16..N`): the initial
