@@ -167,8 +167,15 @@ fn log171_derives_its_window_rates_and_field() {
     assert!(
         setup.notes[0]
             .to_string()
-            .starts_with("flight window from the log: 84.7-237.1 s")
+            .starts_with("flight window from the log: 84.7-228.5 s")
     );
+    // Cut before the loss of control (a roll to 40 deg at 229 s), not 2 s before the impact.
+    assert!(
+        window.impact_us.is_some_and(|t| t > 239_000_000),
+        "{window:?}"
+    );
+    assert!(window.to_us <= 230_000_000, "{window:?}");
+    assert_eq!(window.loss_of_control_us, Some(window.to_us));
     assert!(matches!(setup.notes[1], SetupNote::ModelDateClamped { .. }));
     assert_eq!(setup.imu_rate_hz, 50.0);
     assert!((setup.gps_rate_hz.unwrap() - 4.975).abs() < 0.01);

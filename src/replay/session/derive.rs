@@ -139,10 +139,15 @@ impl fmt::Display for SetupNote {
                 s(w.to_us),
                 s(w.from_us),
                 s(w.landing_us),
-                w.impact_us.map_or_else(
-                    || "no impact".to_string(),
-                    |t| format!("impact at {:.1} s, cut 2 s before", s(t))
-                ),
+                match (w.impact_us, w.loss_of_control_us) {
+                    (None, _) => "no impact".to_string(),
+                    (Some(t), None) => format!("impact at {:.1} s, cut 2 s before", s(t)),
+                    (Some(t), Some(l)) => format!(
+                        "impact at {:.1} s, cut at the loss of control, {:.1} s, or 2 s before",
+                        s(t),
+                        s(l)
+                    ),
+                },
                 if overridden { "; --from/--to override it" } else { "" },
             ),
             Self::NoFlight => {
