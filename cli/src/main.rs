@@ -9,6 +9,7 @@
 //! its range, a window outside the log, a bad configuration file).
 
 mod args;
+mod batch;
 mod calibrate;
 mod replay;
 mod report;
@@ -36,6 +37,11 @@ const REPORT_EXAMPLES: &str = "\
 Examples:
   delaynav report log171.bin -o target/report.html
   delaynav report flight42/ --from 100 --to 400 -o flight42.html --json flight42.json";
+
+const BATCH_EXAMPLES: &str = "\
+Examples:
+  delaynav batch ../shared/data --json table.json --csv table.csv
+  delaynav batch logs/ --jobs 4 --quiet > table.csv";
 
 const SIMULATE_EXAMPLES: &str = "\
 Examples:
@@ -81,6 +87,11 @@ enum Command {
     /// correlation, the correlation curve.
     #[command(after_help = CALIBRATE_EXAMPLES, allow_negative_numbers = true)]
     Calibrate(calibrate::CalibrateArgs),
+    /// Replay every log under a folder (`.bin`, `.ulg`, CSV folders) in
+    /// parallel: one row per log (CSV on stdout, `--csv`, `--json`); a log
+    /// that fails to read is a row with its error.
+    #[command(after_help = BATCH_EXAMPLES)]
+    Batch(batch::BatchArgs),
     /// The paper's simulated experiments: every estimator on both scenarios.
     #[command(after_help = SIMULATE_EXAMPLES)]
     Simulate(suite::SimulateArgs),
@@ -95,6 +106,7 @@ fn main() -> ExitCode {
         Command::Replay(a) => replay::main(a),
         Command::Report(a) => report::main(a),
         Command::Calibrate(a) => calibrate::main(a),
+        Command::Batch(a) => batch::main(a),
         Command::Simulate(a) => suite::simulate(a),
         Command::Suite(a) => suite::suite(a),
     };

@@ -159,7 +159,14 @@ fn a_config_error_names_the_file_the_key_the_value_and_the_bound() {
 
 #[test]
 fn every_subcommand_has_an_example_in_its_help() {
-    for command in ["replay", "calibrate", "simulate", "suite"] {
+    for command in [
+        "replay",
+        "report",
+        "calibrate",
+        "batch",
+        "simulate",
+        "suite",
+    ] {
         let out = delaynav(&[command, "--help"]);
         let stdout = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success(), "{command}: {stdout}");
@@ -168,4 +175,98 @@ fn every_subcommand_has_an_example_in_its_help() {
             "{command}: {stdout}"
         );
     }
+}
+
+#[test]
+fn batch_counts_a_log_it_cannot_read_as_an_error_row_and_exits_0() {
+    let Some(log) = shared("ardupilot-log171/log171.bin") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("delaynav-cli-batch-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    std::fs::copy(&log, dir.join("sub/log171.bin")).unwrap();
+    // The first 5 kB of the log: a DataFlash file without an IMU record.
+    let head = std::fs::read(&log).unwrap()[..5000].to_vec();
+    std::fs::write(dir.join("corrupt.bin"), head).unwrap();
+    std::fs::write(dir.join("notes.txt"), "not a log").unwrap();
+    let json = dir.join("table.json");
+    let csv = dir.join("table.csv");
+    let out = delaynav(&[
+        "batch",
+        dir.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("2 logs, 1 replayed, 1 failed to read"),
+        "{stderr}"
+    );
+    let table: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        (table["logs"].as_u64(), table["failed"].as_u64()),
+        (Some(2), Some(1))
+    );
+    let rows = table["rows"].as_array().unwrap();
+    assert!(rows[0]["file"].as_str().unwrap().ends_with("corrupt.bin"));
+    assert!(rows[0]["error"].as_str().unwrap().contains("corrupt.bin"));
+    let good = &rows[1];
+    assert!(good["error"].is_null());
+    let to = good["vehicle_window_s"][1].as_f64().unwrap();
+    assert!(to <= 230.0, "{good}");
+    assert!(
+        good["proposed"]["yaw_rms_deg"].as_f64().unwrap() < 5.0,
+        "{good}"
+    );
+    let csv = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_report_is_one_self_contained_page_with_every_plot() {
+    let Some(log) = shared("ardupilot-log171/log171.bin") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("delaynav-cli-report-{}", std::process::id()));
+    let page = dir.join("nested/report.html");
+    let out = delaynav(&[
+        "report",
+        log.to_str().unwrap(),
+        "-o",
+        page.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    for plot in [
+        "attitude-roll",
+        "attitude-pitch",
+        "attitude-yaw",
+        "delay",
+        "delay-status",
+        "innovations-gps",
+        "innovations-mag",
+        "health",
+        "track",
+    ] {
+        assert!(
+            html.contains(&format!(r#"data-plot="{plot}""#)),
+            "no plot {plot}"
+        );
+    }
+    // Nothing to fetch, no script, no NaN drawn.
+    assert!(!html.contains("src=") && !html.contains("<script") && !html.contains("NaN"));
+    assert!(html.contains("Scored 84.7-228.5 s"));
+    assert!(html.contains("warning: the log is dated 2015-11-21"));
+    std::fs::remove_dir_all(&dir).ok();
 }
