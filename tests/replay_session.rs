@@ -210,3 +210,27 @@ fn a_front_end_gets_typed_errors() {
     let err = ReplaySetup::open(&options).unwrap_err();
     assert!(matches!(err, ReplayError::InvalidSeconds { .. }), "{err}");
 }
+
+#[test]
+fn a_log_without_a_magnetometer_has_no_measured_inclination() {
+    let dir = std::env::temp_dir().join(format!("delaynav-session-nomag-{}", std::process::id()));
+    let mut options = ReplayOptions::default();
+    options.simulated_log(&dir).unwrap();
+    std::fs::remove_file(dir.join("mag.csv")).unwrap();
+    // What the log gives, not the simulator's field.
+    options.inclination_deg = None;
+    let setup = ReplaySetup::from_log(&options);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let setup = setup.unwrap();
+    // No magnetometer sample and no geodetic fix (no model): nothing measured it.
+    assert_eq!(
+        setup.derived.inclination_rad,
+        (0.0, InclinationSource::None)
+    );
+    let text = setup.derived.to_string();
+    assert!(
+        text.contains("inclination 0.00 deg (none (0: no magnetometer sample to measure it on))"),
+        "{text}"
+    );
+    assert!(!text.contains("first 10 s"), "{text}");
+}
