@@ -25,7 +25,8 @@ report="${1:-}"
 if [ -z "$report" ]; then
   data="${DELAYNAV_SHARED_DATA:-../shared/data}/ardupilot-log171/log171.bin"
   [ -f "$data" ] || { echo "browser-test: $data is missing" >&2; exit 1; }
-  cargo build --release -p delaynav-cli
+  # The command CI's "examples compile" step runs: already built there.
+  cargo build --release --workspace --all-features --examples --bins
   report="$out/report.html"
   "${CARGO_TARGET_DIR:-target}/release/delaynav" report "$data" -o "$report" --quiet >/dev/null
 fi
