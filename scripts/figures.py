@@ -537,9 +537,10 @@ def gps_resets(e):
 
 
 def tuning_configs():
+    window = load("log171-log-derived.json")["window_s"]
     out = [
-        "RMS differences from the onboard EKF over the flight window (84.7-237.1 s), final delay, "
-        "GPS fixes",
+        "RMS differences from the onboard EKF over the flight window "
+        f"({window[0]:.1f}-{window[1]:.1f} s), final delay, GPS fixes",
         "with a block gated against position blocks fused, and GPS block resets (position + "
         "velocity), one",
         "run each:",

@@ -554,6 +554,14 @@ macro_rules! delay_tests {
                     assert!((result.delay_s as f64 - tau).abs() < 0.02, "{} vs {tau}", result.delay_s);
                     assert!(result.peak > 0.5);
                     assert_eq!(result.refused, 0);
+                    // The curve: every shift of +-6 s on the 50 Hz grid, its highest
+                    // point the peak's grid shift (the result refines it between shifts).
+                    let curve: Vec<_> = calibrator.curve().collect();
+                    assert_eq!(curve.len(), 601);
+                    assert!((curve[0].0 as f64 + 6.0).abs() < 1e-4 && (curve[600].0 as f64 - 6.0).abs() < 1e-4);
+                    let top = curve.iter().filter(|c| c.2 >= 500).max_by(|a, b| a.1.partial_cmp(&b.1).unwrap()).unwrap();
+                    assert!((top.0 as f64 - result.delay_s as f64).abs() <= 0.02, "{} vs {}", top.0, result.delay_s);
+                    assert!((top.1 as f64 - result.peak as f64).abs() < 1e-6 && top.2 >= result.pairs.min(500));
                 }
             }
 

@@ -89,6 +89,7 @@ fn synthetic() -> (Vec<SensorEvent<f64>>, FlightWindow) {
         to_us: end_us,
         landing_us: end_us,
         impact_us: None,
+        loss_of_control_us: None,
     };
     (events, window)
 }
@@ -266,13 +267,19 @@ fn log171_defaults_are_measured_and_equal_across_layouts() {
     assert_eq!(found[0], found[1], ".bin and CSV disagree");
     let (window, d, date) = &found[0];
     // README: flight from about 75-85 s, impact at about 230-245 s; the
-    // window ends 2 s before it.
+    // window ends at the loss of control before it (a roll to 40 deg at 229 s),
+    // the same in both layouts.
     assert!(
         (80_000_000..90_000_000).contains(&window.from_us),
         "{window:?}"
     );
     let impact = window.impact_us.expect("log171 ends in a crash");
-    assert_eq!(window.to_us, impact - 2_000_000);
+    assert!(impact > 239_000_000, "{window:?}");
+    assert_eq!(Some(window.to_us), window.loss_of_control_us);
+    assert!(
+        (228_000_000..=230_000_000).contains(&window.to_us),
+        "{window:?}"
+    );
     // README: IMU 49-50 Hz, GPS 4.9-5 Hz, magnetometer 9.8-10 Hz.
     assert!((d.imu_rate_hz.unwrap() - 50.0).abs() < 1.0, "{d:?}");
     assert!((d.gps_rate_hz.unwrap() - 5.0).abs() < 0.2, "{d:?}");

@@ -167,8 +167,15 @@ fn log171_derives_its_window_rates_and_field() {
     assert!(
         setup.notes[0]
             .to_string()
-            .starts_with("flight window from the log: 84.7-237.1 s")
+            .starts_with("flight window from the log: 84.7-228.5 s")
     );
+    // Cut before the loss of control (a roll to 40 deg at 229 s), not 2 s before the impact.
+    assert!(
+        window.impact_us.is_some_and(|t| t > 239_000_000),
+        "{window:?}"
+    );
+    assert!(window.to_us <= 230_000_000, "{window:?}");
+    assert_eq!(window.loss_of_control_us, Some(window.to_us));
     assert!(matches!(setup.notes[1], SetupNote::ModelDateClamped { .. }));
     assert_eq!(setup.imu_rate_hz, 50.0);
     assert!((setup.gps_rate_hz.unwrap() - 4.975).abs() < 0.01);
@@ -202,4 +209,28 @@ fn a_front_end_gets_typed_errors() {
     };
     let err = ReplaySetup::open(&options).unwrap_err();
     assert!(matches!(err, ReplayError::InvalidSeconds { .. }), "{err}");
+}
+
+#[test]
+fn a_log_without_a_magnetometer_has_no_measured_inclination() {
+    let dir = std::env::temp_dir().join(format!("delaynav-session-nomag-{}", std::process::id()));
+    let mut options = ReplayOptions::default();
+    options.simulated_log(&dir).unwrap();
+    std::fs::remove_file(dir.join("mag.csv")).unwrap();
+    // What the log gives, not the simulator's field.
+    options.inclination_deg = None;
+    let setup = ReplaySetup::from_log(&options);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let setup = setup.unwrap();
+    // No magnetometer sample and no geodetic fix (no model): nothing measured it.
+    assert_eq!(
+        setup.derived.inclination_rad,
+        (0.0, InclinationSource::None)
+    );
+    let text = setup.derived.to_string();
+    assert!(
+        text.contains("inclination 0.00 deg (none (0: no magnetometer sample to measure it on))"),
+        "{text}"
+    );
+    assert!(!text.contains("first 10 s"), "{text}");
 }

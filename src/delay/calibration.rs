@@ -422,6 +422,19 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         (k, r, T::lit(k as f64 - self.max_shift as f64) + offset)
     }
 
+    /// The correlation curve of everything pushed so far: for each shift
+    /// `s` in `[-S, S]` (grid samples), `(s × grid period in s, R(s), pairs)`,
+    /// `R` the three-axis vector coefficient of the module docs (0 when a
+    /// stream has no variance at that shift). A shift with fewer than
+    /// `min_pairs` pairs is never the peak of [`Self::result`].
+    pub fn curve(&self) -> impl Iterator<Item = (T, T, usize)> + '_ {
+        let count = 2 * self.max_shift + 1;
+        self.sums.iter().take(count).enumerate().map(|(k, sums)| {
+            let shift = T::lit(k as f64 - self.max_shift as f64) * self.period_s;
+            (shift, sums.vector_coefficient(), sums.n)
+        })
+    }
+
     /// The rough delay from everything pushed so far.
     ///
     /// Errors: [`Error::NotEnoughData`] when no shift has `min_pairs` pairs.

@@ -52,6 +52,9 @@ pub enum InclinationSource {
     MagneticModel,
     /// Measured over the log's first 10 s (no segment and no model).
     FirstSeconds,
+    /// Nothing to measure it on (no magnetometer sample in the log's first
+    /// 10 s) and no model: 0, used by nothing that reads a magnetometer.
+    None,
 }
 
 /// The text the summary and the JSON give for [`ReplayOptions`] values.
@@ -88,6 +91,7 @@ impl InclinationSource {
             Self::StationarySegment => "stationary segment",
             Self::MagneticModel => "World Magnetic Model",
             Self::FirstSeconds => "the log's first 10 s",
+            Self::None => "none (0: no magnetometer sample to measure it on)",
         }
     }
 }
@@ -139,10 +143,15 @@ impl fmt::Display for SetupNote {
                 s(w.to_us),
                 s(w.from_us),
                 s(w.landing_us),
-                w.impact_us.map_or_else(
-                    || "no impact".to_string(),
-                    |t| format!("impact at {:.1} s, cut 2 s before", s(t))
-                ),
+                match (w.impact_us, w.loss_of_control_us) {
+                    (None, _) => "no impact".to_string(),
+                    (Some(t), None) => format!("impact at {:.1} s, cut 2 s before", s(t)),
+                    (Some(t), Some(l)) => format!(
+                        "impact at {:.1} s, cut at the loss of control, {:.1} s, or 2 s before",
+                        s(t),
+                        s(l)
+                    ),
+                },
                 if overridden { "; --from/--to override it" } else { "" },
             ),
             Self::NoFlight => {
@@ -467,10 +476,10 @@ pub(super) fn derive(options: &ReplayOptions) -> Result<ReplaySetup, ReplayError
         }
         (None, None) => match model {
             Some(m) => (m.inclination_rad, InclinationSource::MagneticModel),
-            None => (
-                inclination_at_rest(open()?, 10_000_000).unwrap_or(0.0),
-                InclinationSource::FirstSeconds,
-            ),
+            None => inclination_at_rest(open()?, 10_000_000)
+                .map_or((0.0, InclinationSource::None), |i| {
+                    (i, InclinationSource::FirstSeconds)
+                }),
         },
     };
     if let Some(m) = model
