@@ -47,7 +47,7 @@
 //!   `trim_roll_rad`, `trim_pitch_rad`, `derived`
 //!   ([`DerivedDefaults::to_json`]) and `estimators`, one entry each
 //!   ([`EstimatorReport::to_json`]: `estimator`, `about`, `final_delay_s`,
-//!   `delay_step`, `delay_track`, `roll_rms_deg`, `pitch_rms_deg`,
+//!   `delay_estimated`, `delay_not_estimated_reason`, `delay_step`, `delay_track`, `roll_rms_deg`, `pitch_rms_deg`,
 //!   `yaw_rms_deg`, `velocity_rms_m_s`, `reference_samples_scored`,
 //!   `reference_samples_unscored`, `samples_refused`, `refused_by_kind`,
 //!   `non_finite_estimates`, `samples_pushed`, `gps_position_fused`,
