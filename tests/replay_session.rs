@@ -108,7 +108,18 @@ fn the_simulated_run_through_every_estimator() {
     assert_eq!(lines[0], delaynav::replay::session::table_header());
     assert_eq!(lines[1..4], observer.reports[..]);
     assert!(text.contains("\nhealth at the end of the replay"));
-    assert!(report.delay_steps().is_empty());
+    // The offline calibration's line only (no delay step, every delay estimated).
+    let offline = report.estimators[0]
+        .summary
+        .offline_delay
+        .as_ref()
+        .expect("a calibration of the simulated run");
+    assert!(offline.applied && offline.peak > 0.5, "{offline:?}");
+    assert!((offline.delay_s - 0.2).abs() < 0.03, "{offline:?}");
+    assert_eq!(
+        report.delay_steps(),
+        format!("proposed: {}\n", offline.line())
+    );
 
     // The JSON: every key of the contract (docs/replay.md).
     let json = report.to_json();
@@ -149,6 +160,16 @@ fn the_simulated_run_through_every_estimator() {
     );
     assert_eq!(json["estimators"][0]["health"]["alignment"], "Aligned");
     assert_eq!(json["estimators"][0]["delay_estimated"], true);
+    assert_eq!(json["estimators"][0]["offline_delay"]["applied"], true);
+    assert!(
+        json["estimators"][0]["offline_delay"]["curve"]
+            .as_array()
+            .is_some_and(|c| c.len() > 100)
+    );
+    assert_eq!(
+        json["estimators"][1]["offline_delay"],
+        serde_json::Value::Null
+    );
     assert_eq!(
         json["estimators"][2]["delay_estimated"],
         serde_json::Value::Null
@@ -252,4 +273,6 @@ fn a_delay_never_estimated_is_not_reported_as_one() {
         "{text}"
     );
     assert!(text.contains(&format!("proposed: delay_s - (not estimated: {reason})")));
+    // Three seconds: not enough for an offline result either.
+    assert_eq!(proposed.summary.offline_delay, None);
 }

@@ -422,6 +422,21 @@ impl<T: Scalar, const SHIFTS: usize, const HIST: usize> OfflineCalibrator<T, SHI
         (k, r, T::lit(k as f64 - self.max_shift as f64) + offset)
     }
 
+    /// The three-axis correlation `R(s)` of every shift with `min_pairs` pairs so far, as
+    /// (shift as a delay, s; `R`), from the most negative shift.
+    pub fn curve(&self) -> impl Iterator<Item = (T, T)> + '_ {
+        let shifts = 2 * self.max_shift + 1;
+        self.sums
+            .iter()
+            .enumerate()
+            .take(shifts)
+            .filter(|(_, s)| s.n >= self.config.min_pairs)
+            .map(move |(k, s)| {
+                let shift = T::lit(k as f64 - self.max_shift as f64);
+                (shift * self.period_s, s.vector_coefficient())
+            })
+    }
+
     /// The rough delay from everything pushed so far.
     ///
     /// Errors: [`Error::NotEnoughData`] when no shift has `min_pairs` pairs.

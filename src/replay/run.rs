@@ -223,6 +223,9 @@ pub struct RunSummary {
     /// [`Self::final_delay_s`]. `None` when estimated, and for estimators
     /// without a delay.
     pub delay_not_estimated: Option<String>,
+    /// The offline calibration run before this pass, for the estimators whose start it sets
+    /// ([`ReplaySetup::offline_delay`](super::session::ReplaySetup::offline_delay)).
+    pub offline_delay: Option<super::session::OfflineDelay>,
     /// Every update of the delay loop, for estimators that have one
     /// ([`FusionRecords::last_delay_update`]): the per-window correlation
     /// peaks behind the estimate.

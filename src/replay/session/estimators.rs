@@ -94,11 +94,26 @@ pub const ESTIMATORS: &[RegisteredEstimator] = &[
         name: "proposed",
         about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
         run: |setup, pass| {
-            let mut nav = DelayCompensatedNav::<f64>::new(setup.nav)?;
+            // The offline calibration first: the online loop's start and range.
+            let offline = setup.offline_delay(&pass.reader)?;
+            let config = setup.nav_with_offline(offline.as_ref());
+            let mut nav = DelayCompensatedNav::<f64>::new(config)?;
             let mut summary = run_one(setup, pass, "proposed", &mut nav)?;
+            summary.offline_delay = offline;
             let health = nav.health();
             withhold_unestimated_delay(&mut summary, &health);
-            Ok((summary, HealthSummary::of_navigator(&health)))
+            let mut health = HealthSummary::of_navigator(&health);
+            let delay_loop = nav.delay_loop();
+            if let Some(status) = health.delay_status.as_mut()
+                && delay_loop.gps_rate_changes() > 0
+            {
+                *status += &format!(
+                    ", followed {} GPS rate changes (now {:.2} Hz)",
+                    delay_loop.gps_rate_changes(),
+                    delay_loop.config().gps_rate_hz
+                );
+            }
+            Ok((summary, health))
         },
     },
     RegisteredEstimator {

@@ -70,6 +70,7 @@ impl EstimatorReport {
             "final_delay_s": s.final_delay_s,
             "delay_estimated": s.delay_estimated(),
             "delay_not_estimated_reason": s.delay_not_estimated,
+            "offline_delay": s.offline_delay.as_ref().map(super::OfflineDelay::to_json),
             "delay_step": s.delay_step.map(|d| json!({
                 "from_s": d.from_s,
                 "added_s": d.added_s,
@@ -191,10 +192,15 @@ impl ReplayReport {
         })
     }
 
-    /// The console's lines on the delay under the table: why a delay was
-    /// not estimated ([`EstimatorReport::delay_not_estimated_line`]), then
-    /// the delay steps ([`EstimatorReport::delay_step_line`]).
+    /// The console's lines on the delay under the table: the offline calibration
+    /// ([`OfflineDelay::line`](super::OfflineDelay::line)), why a delay was not estimated
+    /// ([`EstimatorReport::delay_not_estimated_line`]), then the delay steps
+    /// ([`EstimatorReport::delay_step_line`]).
     pub fn delay_steps(&self) -> String {
+        let offline = self.estimators.iter().filter_map(|e| {
+            let o = e.summary.offline_delay.as_ref()?;
+            Some(format!("{}: {}", e.estimator.name, o.line()))
+        });
         let not_estimated = self
             .estimators
             .iter()
@@ -203,7 +209,11 @@ impl ReplayReport {
             .estimators
             .iter()
             .filter_map(EstimatorReport::delay_step_line);
-        not_estimated.chain(steps).map(|line| line + "\n").collect()
+        offline
+            .chain(not_estimated)
+            .chain(steps)
+            .map(|line| line + "\n")
+            .collect()
     }
 
     /// The console's health summary: a blank line, a heading, then each
@@ -366,6 +376,7 @@ mod tests {
                 "mag_fused",
                 "mag_gated",
                 "non_finite_estimates",
+                "offline_delay",
                 "pitch_rms_deg",
                 "reference_samples_scored",
                 "reference_samples_unscored",

@@ -403,20 +403,13 @@ fn median_rmse_ms_from(traces: &[DelayTrace], from_s: f64) -> f64 {
 
 /// The runs whose traces `valid_means_close` pools: every row's `proposed` run whose true
 /// delay lies in the loop's range, and `sigma_coverage`'s two.
-const VALID_RUNS: [&str; 12] = [
-    "cold_start_low",
-    "cold_start_high",
-    "delay_step",
-    "delay_ramp",
-    "delay_jitter",
-    "gps_2hz",
-    "gps_1hz",
-    "gps_rate_drop",
-    "negative_delay",
-    "calibrated_low",
-    "calibrated_high",
-    "gentle_motion",
-];
+fn valid_runs() -> impl Iterator<Item = &'static str> {
+    super::TRACE_ROWS
+        .iter()
+        .copied()
+        .filter(|r| !r.starts_with("out_of_range"))
+        .chain(super::EXTRA_TRACES)
+}
 
 /// The traces of the runs made so far, by run name: the rows that score the same runs
 /// (`delay_ramp_coverage`, `acquisition_sigma`, `valid_means_close`) share them.
@@ -533,7 +526,7 @@ pub(super) fn run_row(name: &'static str, options: &DelayOptions, runs: &mut Run
         }
         "valid_means_close" => {
             let mut pooled = Some(Vec::new());
-            for run in VALID_RUNS {
+            for run in valid_runs() {
                 match (runs.traces(run, options), pooled.as_mut()) {
                     (Some(t), Some(p)) => p.extend(t.iter().map(DelayTrace::valid_but_far)),
                     _ => pooled = None,
