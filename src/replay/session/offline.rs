@@ -73,6 +73,17 @@ impl OfflineDelay {
     }
 }
 
+/// The online loop's range `(lo, hi)`, s, for the offline delay `d`: kept when it holds `d` with
+/// [`OFFLINE_RANGE_MARGIN_S`] to spare, else moved, its width kept, to be centred on `d`.
+fn online_range((lo, hi): (f64, f64), d: f64) -> (f64, f64) {
+    if (lo + OFFLINE_RANGE_MARGIN_S..=hi - OFFLINE_RANGE_MARGIN_S).contains(&d) {
+        (lo, hi)
+    } else {
+        let half = 0.5 * (hi - lo);
+        (d - half, d + half)
+    }
+}
+
 impl ReplaySetup {
     /// The offline calibration over the replayed window read with `reader`; `None` when the
     /// window has too little data for a result.
@@ -109,23 +120,19 @@ impl ReplaySetup {
         let edge = OFFLINE_MAX_SHIFT_S - 1.0 / config.correlation_rate_hz;
         let applied = result.peak >= OFFLINE_MIN_PEAK && result.delay_s.abs() < edge;
         let fusion = &self.nav.delay_loop.fusion;
-        let (lo, hi) = (fusion.delay_min_s, fusion.delay_max_s);
+        let range = (fusion.delay_min_s, fusion.delay_max_s);
         let d = result.delay_s;
-        let range_s = if !applied
-            || (lo + OFFLINE_RANGE_MARGIN_S..=hi - OFFLINE_RANGE_MARGIN_S).contains(&d)
-        {
-            (lo, hi)
-        } else {
-            let half = 0.5 * (hi - lo);
-            (d - half, d + half)
-        };
         Ok(Some(OfflineDelay {
+            range_s: if applied {
+                online_range(range, d)
+            } else {
+                range
+            },
             delay_s: d,
             peak: result.peak,
             curve: calibrator.curve().collect(),
             refused,
             applied,
-            range_s,
         }))
     }
 
@@ -144,5 +151,26 @@ impl ReplaySetup {
             nav.delay_loop.fusion.delay_max_s = o.range_s.1;
         }
         nav
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_range_moves_only_when_it_does_not_hold_the_offline_delay() {
+        assert_eq!(online_range((0.0, 1.0), 0.31), (0.0, 1.0));
+        assert_eq!(online_range((0.0, 1.0), 0.9), (0.0, 1.0));
+        let (lo, hi) = online_range((0.0, 1.0), -0.47);
+        assert!(
+            (lo + 0.97).abs() < 1e-12 && (hi - 0.03).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+        let (lo, hi) = online_range((0.0, 1.0), 0.95);
+        assert!(
+            (lo - 0.45).abs() < 1e-12 && (hi - 1.45).abs() < 1e-12,
+            "{lo} {hi}"
+        );
     }
 }
