@@ -41,7 +41,18 @@ fn shortened_suite_writes_the_issue_rows() {
         let object = row.as_object().expect("an object");
         let mut keys: Vec<&str> = object.keys().map(String::as_str).collect();
         keys.sort_unstable();
-        assert_eq!(keys, ["criterion", "limit", "measured", "name", "passed"]);
+        assert_eq!(
+            keys,
+            [
+                "bound",
+                "criterion",
+                "limit",
+                "measured",
+                "name",
+                "passed",
+                "ratio"
+            ]
+        );
         assert!(row["passed"].is_boolean() && row["criterion"].is_string());
         assert!(row["measured"].is_number() || row["measured"].is_null());
         assert!(row["limit"].is_number());
@@ -56,11 +67,25 @@ fn shortened_suite_writes_the_issue_rows() {
             .is_some_and(|r| r["passed"] == true)
     };
     // Only the RMSE rows have an information bound (3.14 ms measured for
-    // negative_delay), and it is below their limit.
+    // negative_delay), and they are judged on the ratio to it.
     let bounds = json["information_bounds"].as_object().expect("an object");
     assert_eq!(bounds.keys().collect::<Vec<_>>(), ["negative_delay"]);
     let bound = bounds["negative_delay"].as_f64().expect("a number");
     assert!(bound > 1.0 && bound < 10.0, "{bound}");
+    let negative = scenarios
+        .iter()
+        .find(|r| r["name"] == "negative_delay")
+        .expect("the row");
+    assert_eq!(negative["bound"], bound);
+    let ratio = negative["measured"].as_f64().expect("a figure") / bound;
+    assert!((negative["ratio"].as_f64().expect("a ratio") - ratio).abs() < 1e-12);
+    assert_eq!(
+        negative["passed"],
+        ratio <= negative["limit"].as_f64().expect("a limit")
+    );
+    for row in scenarios.iter().filter(|r| r["name"] != "negative_delay") {
+        assert!(row["bound"].is_null() && row["ratio"].is_null(), "{row}");
+    }
     // The rows the loop passes (seed 1 measured 2.3 s, 3.5 ms, 20.4 s).
     for name in ["delay_step", "negative_delay", "out_of_range_reported"] {
         assert!(passed(name), "{name}: {json:#}");

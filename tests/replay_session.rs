@@ -108,7 +108,18 @@ fn the_simulated_run_through_every_estimator() {
     assert_eq!(lines[0], delaynav::replay::session::table_header());
     assert_eq!(lines[1..4], observer.reports[..]);
     assert!(text.contains("\nhealth at the end of the replay"));
-    assert!(report.delay_steps().is_empty());
+    // The offline calibration's line only (no delay step, every delay estimated).
+    let offline = report.estimators[0]
+        .summary
+        .offline_delay
+        .as_ref()
+        .expect("a calibration of the simulated run");
+    assert!(offline.applied && offline.peak > 0.5, "{offline:?}");
+    assert!((offline.delay_s - 0.2).abs() < 0.03, "{offline:?}");
+    assert_eq!(
+        report.delay_steps(),
+        format!("proposed: {}\n", offline.line())
+    );
 
     // The JSON: every key of the contract (docs/replay.md).
     let json = report.to_json();
@@ -148,6 +159,21 @@ fn the_simulated_run_through_every_estimator() {
         serde_json::Value::Null
     );
     assert_eq!(json["estimators"][0]["health"]["alignment"], "Aligned");
+    assert_eq!(json["estimators"][0]["delay_estimated"], true);
+    assert_eq!(json["estimators"][0]["offline_delay"]["applied"], true);
+    assert!(
+        json["estimators"][0]["offline_delay"]["curve"]
+            .as_array()
+            .is_some_and(|c| c.len() > 100)
+    );
+    assert_eq!(
+        json["estimators"][1]["offline_delay"],
+        serde_json::Value::Null
+    );
+    assert_eq!(
+        json["estimators"][2]["delay_estimated"],
+        serde_json::Value::Null
+    );
 }
 
 #[test]
@@ -233,4 +259,51 @@ fn a_log_without_a_magnetometer_has_no_measured_inclination() {
         "{text}"
     );
     assert!(!text.contains("first 10 s"), "{text}");
+}
+
+/// A window too short for any valid update of the delay loop: the start
+/// value is not reported as an estimate (JSON null, `delay_estimated` false
+/// with the reason, `-` on the console with the reason).
+#[cfg(feature = "sim")]
+#[test]
+fn a_delay_never_estimated_is_not_reported_as_one() {
+    let dir = std::env::temp_dir().join(format!("delaynav-session-still-{}", std::process::id()));
+    let mut options = ReplayOptions {
+        from_s: Some(1.0),
+        warmup_s: Some(1.0),
+        to_s: Some(4.0),
+        ..ReplayOptions::default()
+    };
+    options.simulated_log(&dir).unwrap();
+    let setup = ReplaySetup::open(&options).unwrap();
+    let scan = setup.scan().unwrap();
+    let estimators = select_estimators("proposed").unwrap();
+    let report = setup.run(scan, &estimators, &mut ()).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    let proposed = &report.estimators[0];
+    assert_eq!(proposed.summary.final_delay_s, None);
+    let reason = proposed.summary.delay_not_estimated.as_deref().unwrap();
+    assert!(
+        reason.starts_with("no valid update of the delay loop"),
+        "{reason}"
+    );
+    let json = report.to_json();
+    assert_eq!(
+        json["estimators"][0]["final_delay_s"],
+        serde_json::Value::Null
+    );
+    assert_eq!(json["estimators"][0]["delay_estimated"], false);
+    assert_eq!(json["estimators"][0]["delay_not_estimated_reason"], reason);
+    let text = report.to_string();
+    assert!(
+        text.lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("proposed          -"),
+        "{text}"
+    );
+    assert!(text.contains(&format!("proposed: delay_s - (not estimated: {reason})")));
+    // Three seconds: not enough for an offline result either.
+    assert_eq!(proposed.summary.offline_delay, None);
 }

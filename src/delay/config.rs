@@ -95,6 +95,15 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub max_imu_gap_s: T,
     /// Longest GPS gap, s; a longer one restarts the correlation buffer.
     pub max_gps_gap_s: T,
+    /// The GPS rate the windows, the gap limit and the smoothing are set for, Hz (10 for the
+    /// defaults; [`adapted_to_gps_rate`](Self::adapted_to_gps_rate) sets it).
+    pub gps_rate_hz: T,
+    /// Measure the GPS rate from the fix intervals and follow it: when
+    /// [`GPS_RATE_VOTES`](crate::delay::GPS_RATE_VOTES) intervals in a row agree with each other
+    /// (within a factor 1.25) and differ from [`gps_rate_hz`](Self::gps_rate_hz) by more than a
+    /// factor 1.5, the loop adapts itself to the measured rate ([`adapted_to_gps_rate`](Self::adapted_to_gps_rate)), keeping its estimate
+    /// and sigma, and counts it ([`DelayLoop::gps_rate_changes`](crate::delay::DelayLoop::gps_rate_changes)).
+    pub follow_gps_rate: bool,
     /// Delay random-walk intensity `q`, ms^2/s (see the type docs).
     pub process_noise_ms2_per_s: T,
     /// Variance `R_i` of one axis' peak over one independent buffer, ms^2
@@ -179,6 +188,8 @@ impl<T: Scalar> Default for DelayLoopConfig<T> {
             fixes_per_update: 1,
             max_imu_gap_s: T::lit(0.1),
             max_gps_gap_s: T::lit(0.5),
+            gps_rate_hz: T::lit(10.0),
+            follow_gps_rate: true,
             process_noise_ms2_per_s: T::lit(4.2),
             measurement_noise_ms2: [T::lit(1600.0); AXES],
             reference_accel_variance_m2_s4: T::lit(9.0),
@@ -228,6 +239,8 @@ impl<T: Scalar> DelayLoopConfig<T> {
         fixes_per_update: 0,
         max_imu_gap_s: T::ZERO,
         max_gps_gap_s: T::ZERO,
+        gps_rate_hz: T::ZERO,
+        follow_gps_rate: false,
         process_noise_ms2_per_s: T::ZERO,
         measurement_noise_ms2: [T::ZERO; AXES],
         reference_accel_variance_m2_s4: T::ZERO,
@@ -290,6 +303,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
             });
         }
         let slow = gps_rate_hz < T::lit(5.0);
+        self.gps_rate_hz = gps_rate_hz;
         self.max_gps_gap_s = T::lit(2.2) / gps_rate_hz;
         self.gps_diff_span = if slow { 1 } else { 2 };
         self.matched_fix_intervals = gps_rate_hz < T::lit(MATCHED_BELOW_HZ);
@@ -327,6 +341,7 @@ impl<T: Scalar> DelayLoopConfig<T> {
         check::count_at_least("fixes_per_update", self.fixes_per_update.into(), 1)?;
         check::positive_finite("max_imu_gap_s", self.max_imu_gap_s)?;
         check::positive_finite("max_gps_gap_s", self.max_gps_gap_s)?;
+        check::positive_finite("gps_rate_hz", self.gps_rate_hz)?;
         check::not_negative("process_noise_ms2_per_s", self.process_noise_ms2_per_s)?;
         for (field, r) in [
             "measurement_noise_ms2[0]",

@@ -60,6 +60,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         innovation: InnovationDelay::BLANK,
         innovation_window: ZeroOption::None,
         window_nis: T::ZERO,
+        rate_interval_us: 0,
+        rate_votes: 0,
+        gps_rate_changes: 0,
         configured: false,
     };
 
@@ -119,8 +122,70 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.innovation = InnovationDelay::BLANK;
         self.innovation_window = ZeroOption::None;
         self.window_nis = T::zero();
+        self.rate_interval_us = 0;
+        self.rate_votes = 0;
+        self.gps_rate_changes = 0;
         self.configured = true;
         Ok(())
+    }
+
+    /// Times the loop followed a new GPS rate ([`DelayLoopConfig::follow_gps_rate`]); the rate
+    /// it runs for is its [`config`](Self::config)'s `gps_rate_hz`.
+    pub fn gps_rate_changes(&self) -> u32 {
+        self.gps_rate_changes.into()
+    }
+
+    /// Follows the GPS rate ([`DelayLoopConfig::follow_gps_rate`]) on a fix received at `t_us`:
+    /// the interval since the last fix votes for its rate; on [`GPS_RATE_VOTES`](super::GPS_RATE_VOTES)
+    /// intervals agreeing within a factor 1.25, whose rate differs from the configured one by more
+    /// than a factor 1.5, the loop restarts adapted to it, keeping its
+    /// delay estimate, sigma and restart count. A rate the capacities refuse (or outside
+    /// 1-20 Hz) leaves the loop as it is.
+    fn follow_gps_rate(&mut self, t_us: u64) {
+        let Some(last) = self.last_gps_us.filter(|&l| l < t_us) else {
+            return;
+        };
+        // Integer ratios: no double-precision arithmetic on a single-precision FPU.
+        let interval = (t_us - last).min(u64::from(u32::MAX));
+        let nominal = (T::lit(1e6) / self.config.gps_rate_hz).as_f64() as u64;
+        // Within a factor 1.5 of the configured rate: not a new rate.
+        if 2 * interval <= 3 * nominal && 3 * interval >= 2 * nominal {
+            self.rate_votes = 0;
+            return;
+        }
+        // Agreeing with the previous interval within a factor 1.25.
+        let candidate = u64::from(self.rate_interval_us);
+        if 4 * interval <= 5 * candidate && 5 * interval >= 4 * candidate {
+            self.rate_votes = self.rate_votes.saturating_add(1);
+        } else {
+            self.rate_interval_us = interval as u32;
+            self.rate_votes = 1;
+        }
+        if self.rate_votes < super::GPS_RATE_VOTES {
+            return;
+        }
+        self.rate_votes = 0;
+        let rate_hz = T::lit(1e6) / T::lit(f64::from(self.rate_interval_us));
+        let Ok(mut adapted) = self.config.adapted_to_gps_rate(rate_hz) else {
+            return;
+        };
+        adapted.fusion.initial_delay_s = self.fusion.delay_s();
+        adapted.fusion.initial_std_s = self.fusion.variance_s2().sqrt();
+        let Ok(sizes) = adapted.sizes() else {
+            return;
+        };
+        if Self::check_capacities(&adapted, &sizes).is_err() {
+            return;
+        }
+        let (previous, restarts, changes) = (self.config, self.restarts, self.gps_rate_changes);
+        let locked = self.locked;
+        if self.configure(adapted).is_err() {
+            // Cannot fail after the checks above; the previous configuration ran before.
+            let _ = self.configure(previous);
+        }
+        self.locked = locked;
+        self.restarts = restarts;
+        self.gps_rate_changes = changes.saturating_add(1);
     }
 
     /// The sizes of `config` against the capacities, each error on the
@@ -311,6 +376,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if !self.configured {
             return Err(Error::not_configured());
         }
+        if self.config.follow_gps_rate && velocity_ned_m_s.iter().all(|v| v.is_finite()) {
+            self.follow_gps_rate(t_us);
+        }
         let gap = admit_sample(
             "gps",
             "delay.gps_velocity",
@@ -500,5 +568,57 @@ mod tests {
         assert_eq!(acquiring_window_variance(&config, window, far), None);
     }
 
-    tests_in_both_precisions!(acquiring_window_rules);
+    /// Pushes `n` fixes (zero velocity) `interval_us` apart after `t_us`; the last fix's time.
+    fn fixes<T: Scalar>(
+        l: &mut DefaultDelayLoop<T>,
+        mut t_us: u64,
+        interval_us: u64,
+        n: usize,
+    ) -> u64 {
+        for _ in 0..n {
+            t_us += interval_us;
+            l.push_gps(t_us, Vector3::zeros()).expect("a valid fix");
+        }
+        t_us
+    }
+
+    /// The loop measures the GPS rate from the fix intervals and follows it (both ways),
+    /// keeping its estimate; a lost fix or two is not a new rate; off, it keeps its rate.
+    fn follows_the_gps_rate<T: Scalar>() {
+        let mut l = DefaultDelayLoop::<T>::new(DelayLoopConfig::default()).expect("defaults");
+        l.set_delay(T::lit(0.25), T::lit(0.01)).expect("in range");
+        let rate = |l: &DefaultDelayLoop<T>| l.config().gps_rate_hz.as_f64();
+        // 10 Hz with two lost fixes, apart: no change.
+        let mut t = fixes(&mut l, 0, 100_000, 10);
+        t = fixes(&mut l, t, 200_000, 1);
+        t = fixes(&mut l, t, 100_000, 5);
+        t = fixes(&mut l, t, 200_000, 1);
+        t = fixes(&mut l, t, 100_000, 5);
+        assert_eq!((rate(&l), l.gps_rate_changes()), (10.0, 0));
+        // 1 Hz: the third interval in a row adapts the loop.
+        t = fixes(&mut l, t, 1_000_000, 2);
+        assert_eq!(rate(&l), 10.0);
+        t = fixes(&mut l, t, 1_000_000, 1);
+        assert!((rate(&l) - 1.0).abs() < 1e-6, "{}", rate(&l));
+        assert_eq!(l.gps_rate_changes(), 1);
+        assert!(l.config().matched_fix_intervals);
+        assert!((l.config().max_gps_gap_s.as_f64() - 2.2).abs() < 1e-6);
+        // The estimate and its sigma kept (no update ran without IMU data).
+        assert!((l.delay_s().as_f64() - 0.25).abs() < 1e-6);
+        assert!((l.fusion_std_s().as_f64() - 0.01).abs() < 1e-4);
+        // Back to 5 Hz.
+        fixes(&mut l, t, 200_000, 3);
+        assert!((rate(&l) - 5.0).abs() < 1e-6, "{}", rate(&l));
+        assert_eq!(l.gps_rate_changes(), 2);
+        // Not followed when off.
+        let config = DelayLoopConfig {
+            follow_gps_rate: false,
+            ..DelayLoopConfig::default()
+        };
+        let mut fixed = DefaultDelayLoop::<T>::new(config).expect("valid");
+        fixes(&mut fixed, 0, 1_000_000, 10);
+        assert_eq!((rate(&fixed), fixed.gps_rate_changes()), (10.0, 0));
+    }
+
+    tests_in_both_precisions!(acquiring_window_rules, follows_the_gps_rate);
 }

@@ -103,6 +103,11 @@
 //! delay and of the buffer length. No allocation: every buffer is a
 //! const-generic array.
 
+/// Fix intervals in a row, each more than a factor 1.5 off the configured GPS rate and within a
+/// factor 1.25 of the previous one, before the loop follows the new rate
+/// ([`DelayLoopConfig::follow_gps_rate`]).
+pub const GPS_RATE_VOTES: u8 = 3;
+
 mod calibration;
 mod config;
 mod correlation;
@@ -232,6 +237,12 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     /// Running mean of the innovation windows' normalized squared
     /// disagreement with the estimate (0 before the first).
     window_nis: T,
+    /// The fix interval the last intervals agree on, us, and how many in a row
+    /// ([`DelayLoopConfig::follow_gps_rate`]).
+    rate_interval_us: u32,
+    rate_votes: u8,
+    /// Times the loop followed a new GPS rate.
+    gps_rate_changes: u16,
     /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
     /// [`configure`](DelayLoop::configure): every sample is refused.
     configured: bool,

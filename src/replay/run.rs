@@ -212,8 +212,20 @@ pub struct RunSummary {
     /// `(time s, delay s)` every `delay_track_interval_us`, for estimators
     /// with a delay estimate.
     pub delay_track: Vec<(f64, f64)>,
-    /// The last delay estimate, seconds.
+    /// The last delay estimate, seconds; `None` for an estimator without a
+    /// delay, and when the delay was never estimated
+    /// ([`Self::delay_not_estimated`]).
     pub final_delay_s: Option<f64>,
+    /// Why the delay was never estimated, for an estimator with a delay
+    /// whose value at the end is not an estimate (no valid update of its
+    /// delay loop, a delay outside its range, a fixed delay): its value is
+    /// then a start value or a range edge, never reported as
+    /// [`Self::final_delay_s`]. `None` when estimated, and for estimators
+    /// without a delay.
+    pub delay_not_estimated: Option<String>,
+    /// The offline calibration run before this pass, for the estimators whose start it sets
+    /// ([`ReplaySetup::offline_delay`](super::session::ReplaySetup::offline_delay)).
+    pub offline_delay: Option<super::session::OfflineDelay>,
     /// Every update of the delay loop, for estimators that have one
     /// ([`FusionRecords::last_delay_update`]): the per-window correlation
     /// peaks behind the estimate.
@@ -279,6 +291,17 @@ impl DelayWindow {
 }
 
 impl RunSummary {
+    /// Whether the delay was estimated: `Some(true)` with a
+    /// [`Self::final_delay_s`], `Some(false)` with a
+    /// [`Self::delay_not_estimated`], `None` for an estimator without a delay.
+    pub fn delay_estimated(&self) -> Option<bool> {
+        match (self.final_delay_s, &self.delay_not_estimated) {
+            (_, Some(_)) => Some(false),
+            (Some(_), None) => Some(true),
+            (None, None) => None,
+        }
+    }
+
     /// Samples refused, all kinds together.
     pub fn samples_refused(&self) -> u64 {
         self.refused.values().sum()

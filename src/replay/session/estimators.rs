@@ -8,7 +8,7 @@ use crate::replay::{
     DelayStep, FusionRecords, LogReader, ReaderOptions, ReferenceReader, ReplayError, RunOptions,
     RunSummary, replay,
 };
-use crate::{AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, Ekf16};
+use crate::{AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, Ekf16, Health};
 
 /// What watches a replay: progress, every estimate, each estimator's
 /// report. Every method does nothing by default; `()` watches nothing.
@@ -94,9 +94,26 @@ pub const ESTIMATORS: &[RegisteredEstimator] = &[
         name: "proposed",
         about: "delay-compensated navigator: delay loop, delayed-horizon EKF, forward reckoning",
         run: |setup, pass| {
-            let mut nav = DelayCompensatedNav::<f64>::new(setup.nav)?;
-            let summary = run_one(setup, pass, "proposed", &mut nav)?;
-            Ok((summary, HealthSummary::of_navigator(&nav.health())))
+            // The offline calibration first: the online loop's start and range.
+            let offline = setup.offline_delay(&pass.reader)?;
+            let config = setup.nav_with_offline(offline.as_ref());
+            let mut nav = DelayCompensatedNav::<f64>::new(config)?;
+            let mut summary = run_one(setup, pass, "proposed", &mut nav)?;
+            summary.offline_delay = offline;
+            let health = nav.health();
+            withhold_unestimated_delay(&mut summary, &health);
+            let mut health = HealthSummary::of_navigator(&health);
+            let delay_loop = nav.delay_loop();
+            if let Some(status) = health.delay_status.as_mut()
+                && delay_loop.gps_rate_changes() > 0
+            {
+                *status += &format!(
+                    ", followed {} GPS rate changes (now {:.2} Hz)",
+                    delay_loop.gps_rate_changes(),
+                    delay_loop.config().gps_rate_hz
+                );
+            }
+            Ok((summary, health))
         },
     },
     RegisteredEstimator {
@@ -122,6 +139,29 @@ pub const ESTIMATORS: &[RegisteredEstimator] = &[
         },
     },
 ];
+
+/// A delay never estimated is never reported as one: when the navigator's
+/// delay is not valid at the end ([`Health::delay_valid`]: no valid update of
+/// its delay loop, or a delay outside the loop's range) or is fixed by its
+/// configuration, `final_delay_s` is `None` and `delay_not_estimated` says
+/// why (the status, and the value that is not an estimate).
+fn withhold_unestimated_delay(summary: &mut RunSummary, health: &Health<f64>) {
+    let d = &health.delay;
+    let reason = match d.status {
+        None => format!("fixed by the configuration at {:.3} s", d.delay_s),
+        Some(_) if health.delay_valid => return,
+        Some(status) if d.valid_updates == 0 => format!(
+            "no valid update of the delay loop ({status}); {:.3} s is its start value",
+            d.delay_s
+        ),
+        Some(status) => format!(
+            "the delay lies outside the loop's range ({status}); {:.3} s is not an estimate",
+            d.delay_s
+        ),
+    };
+    summary.final_delay_s = None;
+    summary.delay_not_estimated = Some(reason);
+}
 
 /// The names a replay understands, including those not built yet.
 const PLANNED: [&str; 3] = ["proposed", "aekf17", "ekf16"];

@@ -47,7 +47,7 @@
 //!   `trim_roll_rad`, `trim_pitch_rad`, `derived`
 //!   ([`DerivedDefaults::to_json`]) and `estimators`, one entry each
 //!   ([`EstimatorReport::to_json`]: `estimator`, `about`, `final_delay_s`,
-//!   `delay_step`, `delay_track`, `roll_rms_deg`, `pitch_rms_deg`,
+//!   `delay_estimated`, `delay_not_estimated_reason`, `offline_delay`, `delay_step`, `delay_track`, `roll_rms_deg`, `pitch_rms_deg`,
 //!   `yaw_rms_deg`, `velocity_rms_m_s`, `reference_samples_scored`,
 //!   `reference_samples_unscored`, `samples_refused`, `refused_by_kind`,
 //!   `non_finite_estimates`, `samples_pushed`, `gps_position_fused`,
@@ -80,11 +80,13 @@
 mod derive;
 mod estimators;
 mod health;
+mod offline;
 mod report;
 
 pub use derive::{DeclinationSource, DerivedDefaults, InclinationSource, NoiseChoice, SetupNote};
 pub use estimators::{ESTIMATORS, RegisteredEstimator, ReplayObserver, select_estimators};
 pub use health::HealthSummary;
+pub use offline::{OFFLINE_MAX_SHIFT_S, OFFLINE_MIN_PEAK, OFFLINE_RANGE_MARGIN_S, OfflineDelay};
 pub use report::{EstimatorReport, ReplayReport, table_header, write_delay_windows};
 
 use super::config_file::read_config_file;

@@ -68,6 +68,9 @@ impl EstimatorReport {
         let mut entry = json!({
             "estimator": self.estimator.name,
             "final_delay_s": s.final_delay_s,
+            "delay_estimated": s.delay_estimated(),
+            "delay_not_estimated_reason": s.delay_not_estimated,
+            "offline_delay": s.offline_delay.as_ref().map(super::OfflineDelay::to_json),
             "delay_step": s.delay_step.map(|d| json!({
                 "from_s": d.from_s,
                 "added_s": d.added_s,
@@ -118,6 +121,17 @@ impl EstimatorReport {
             s.samples_refused(),
             s.non_finite_estimates,
         )
+    }
+
+    /// Why the estimator's delay was never estimated, one line (`-` in the
+    /// table's `delay_s`), for an estimator with a delay that was not
+    /// ([`RunSummary::delay_not_estimated`]).
+    pub fn delay_not_estimated_line(&self) -> Option<String> {
+        let reason = self.summary.delay_not_estimated.as_ref()?;
+        Some(format!(
+            "{}: delay_s - (not estimated: {reason})",
+            self.estimator.name
+        ))
     }
 
     /// How the delay estimate followed a delay step, one line, for an
@@ -178,11 +192,26 @@ impl ReplayReport {
         })
     }
 
-    /// The console's lines on delay steps ([`EstimatorReport::delay_step_line`]).
+    /// The console's lines on the delay under the table: the offline calibration
+    /// ([`OfflineDelay::line`](super::OfflineDelay::line)), why a delay was not estimated
+    /// ([`EstimatorReport::delay_not_estimated_line`]), then the delay steps
+    /// ([`EstimatorReport::delay_step_line`]).
     pub fn delay_steps(&self) -> String {
-        self.estimators
+        let offline = self.estimators.iter().filter_map(|e| {
+            let o = e.summary.offline_delay.as_ref()?;
+            Some(format!("{}: {}", e.estimator.name, o.line()))
+        });
+        let not_estimated = self
+            .estimators
             .iter()
-            .filter_map(EstimatorReport::delay_step_line)
+            .filter_map(EstimatorReport::delay_not_estimated_line);
+        let steps = self
+            .estimators
+            .iter()
+            .filter_map(EstimatorReport::delay_step_line);
+        offline
+            .chain(not_estimated)
+            .chain(steps)
             .map(|line| line + "\n")
             .collect()
     }
@@ -334,6 +363,8 @@ mod tests {
             keys,
             [
                 "about",
+                "delay_estimated",
+                "delay_not_estimated_reason",
                 "delay_step",
                 "delay_track",
                 "estimator",
@@ -345,6 +376,7 @@ mod tests {
                 "mag_fused",
                 "mag_gated",
                 "non_finite_estimates",
+                "offline_delay",
                 "pitch_rms_deg",
                 "reference_samples_scored",
                 "reference_samples_unscored",
@@ -358,6 +390,8 @@ mod tests {
             ]
         );
         assert_eq!(v["estimator"], "proposed");
+        assert_eq!(v["delay_estimated"], true);
+        assert_eq!(v["delay_not_estimated_reason"], Value::Null);
         assert_eq!(v["about"], ESTIMATORS_ABOUT);
         assert_eq!(v["samples_refused"], 3);
         assert_eq!(v["refused_by_kind"], json!({"StepTooLong": 3}));
@@ -377,6 +411,24 @@ mod tests {
                 "by_file": {"gps.csv": {"accepted": 1, "no_fix": 1}},
             })
         );
+    }
+
+    #[test]
+    fn a_delay_never_estimated_is_null_false_and_a_dash_with_its_reason() {
+        let mut r = report();
+        r.summary.final_delay_s = None;
+        r.summary.delay_step = None;
+        r.summary.delay_not_estimated = Some("no valid update".into());
+        let v = r.to_json(&SkipCounts::default());
+        assert_eq!(v["final_delay_s"], Value::Null);
+        assert_eq!(v["delay_estimated"], false);
+        assert_eq!(v["delay_not_estimated_reason"], "no valid update");
+        assert!(r.table_row().starts_with("proposed          -     1.696"));
+        assert_eq!(
+            r.delay_not_estimated_line().unwrap(),
+            "proposed: delay_s - (not estimated: no valid update)"
+        );
+        assert_eq!(report().delay_not_estimated_line(), None);
     }
 
     #[test]

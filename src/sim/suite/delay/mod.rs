@@ -7,29 +7,38 @@
 //! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_high --seed 1
 //! ```
 //!
-//! **Scenario.** Unless a row says otherwise: the `proposed` navigator, no offline
-//! calibration, start 0.1 s, [`RUN_S`] runs, [`DelayOptions::seeds`] with the median reported,
-//! delay RMSE scored from [`SCORE_FROM_S`]. Rows ([`ROW_NAMES`]): `cold_start_low`,
-//! `cold_start_high` (constant 0.2 s), `delay_step` (0.2 -> 0.35 s at 20 s, calibrated start:
-//! the settle time), `delay_ramp` (+60 ms over the run), `delay_jitter` (uniform +-20 ms),
-//! `gps_2hz`, `gps_1hz` (the loop adapted to the rate), `negative_delay` (true -0.15 s, range
+//! **Scenario.** Unless a row says otherwise: the `proposed` navigator with the delay loop's
+//! defaults whatever the GPS rate (nothing adapted by the caller), no offline calibration, start
+//! 0.1 s, [`RUN_S`] runs, [`DelayOptions::seeds`] with the median reported, delay RMSE scored
+//! from [`SCORE_FROM_S`]. Rows ([`ROW_NAMES`]): `cold_start_low`, `cold_start_high` (constant
+//! 0.2 s), `delay_step` (0.2 -> 0.35 s at 20 s, calibrated start: the settle time), `delay_ramp`
+//! (+60 ms over the run) and `delay_ramp_coverage` (its runs' share of samples within 1 sigma
+//! from 20 s), `delay_jitter` (uniform +-20 ms), `gps_2hz`, `gps_1hz`, `gps_rate_drop` (10 Hz,
+//! then one fix in ten from 30 s: RMSE from 40 s), `negative_delay` (true -0.15 s, range
 //! -0.5..0.6 s), `out_of_range_reported` (true -0.15 s, default range: the time until the
-//! below-range status), `sigma_coverage` (low and high, calibrated start, pooled over
-//! [`DelayOptions::coverage_seeds`]), `aekf17_hover` (AEKF17 at hover: final error over final
+//! below-range status) and `out_of_range_weak` (the same in the low scenario with the GPS
+//! velocity noise doubled), `sigma_coverage` (low and high, calibrated start, pooled over
+//! [`DelayOptions::coverage_seeds`]), `gentle_motion` (a ground vehicle shuttling at 2 m/s^2
+//! peak, 200 Hz IMU, true 0.15 s, start 0.2 s, 120 s: RMSE from 60 s), `acquisition_sigma`
+//! (`cold_start_high`'s runs from the first valid update until `Locked`: median of sigma over
+//! |error|), `valid_means_close` (the runs in range: share of the samples with `delay_valid`
+//! whose error exceeds 3 sigma), `aekf17_hover` (AEKF17 at hover: final error over final
 //! sigma). [`LoopTuning`] changes the loop's defaults in every row. Seeds run on
 //! [`DelayOptions::threads`] threads.
 //!
-//! **Verdicts** ([`DelayResult::verdicts`], [`Row::passed`]): a finite figure within the row's
-//! [`Limit`]. A row whose navigator refuses its configuration has no figure and fails; it is
-//! never skipped.
+//! **Verdicts** ([`DelayResult::verdicts`], [`Row::passed`]): a row with an information bound
+//! is judged on its ratio to the bound ([`Row::ratio`]), the others on their figure; a finite
+//! judged figure within the row's [`Limit`] passes. A row whose navigator refuses its
+//! configuration has no figure and fails; it is never skipped.
 //!
 //! **JSON** ([`DelayResult::to_json`]): `suite`, `seeds`, `coverage_seeds`, `loop_tuning`
 //! ([`LoopTuning`]'s fields, `null` for the loop's defaults), `run_s`, `score_from_s`,
 //! `delay_scenarios` (per row `name`, `passed`, `criterion`, `measured` (`null` without a
-//! finite figure), `limit` (a number, or `[lo, hi]` for a band)), and `information_bounds`:
-//! per RMSE row, the delay RMSE that no estimator can beat on the same runs (the Cramér-Rao
-//! bound of every GPS velocity since the start, the acceleration known), so that a row's figure
-//! can be read against what its motion allows.
+//! finite figure), `bound` and `ratio` (`null` for a row without a bound), `limit` (a number,
+//! or `[lo, hi]` for a band; a ratio for a row with a bound)), and `information_bounds`:
+//! per RMSE row with a bound, the delay RMSE that no estimator can beat on the same runs (the
+//! Cramér-Rao bound of every GPS velocity since the start, the acceleration known; for
+//! `delay_ramp`, of a line), so that a row's figure can be read against what its motion allows.
 //!
 //! **Text**: one line per row as it ends ([`Row`]'s `Display`, reported as
 //! [`Progress::DelayRow`]).
@@ -101,25 +110,45 @@ pub struct Row {
 }
 
 impl Row {
-    /// A finite measured figure within the limit.
+    /// The measured figure over the row's information bound, for a row with a bound (`None`
+    /// without a bound or a figure).
+    pub fn ratio(&self) -> Option<f64> {
+        Some(self.measured? / self.bound?)
+    }
+
+    /// The figure the row is judged on: [`Self::ratio`] for a row with a bound, else the
+    /// measured figure.
+    pub fn judged(&self) -> Option<f64> {
+        if self.bound.is_some() {
+            self.ratio()
+        } else {
+            self.measured
+        }
+    }
+
+    /// A finite judged figure ([`Self::judged`]) within the limit.
     pub fn passed(&self) -> bool {
-        self.measured
+        self.judged()
             .is_some_and(|x| x.is_finite() && self.limit.accepts(x))
     }
 
     /// The row's entry of `delay_scenarios`.
     pub fn to_json(&self) -> Value {
+        let finite = |x: Option<f64>| x.filter(|x| x.is_finite());
         json!({
             "name": self.name,
             "passed": self.passed(),
             "criterion": self.criterion,
-            "measured": self.measured.filter(|x| x.is_finite()),
+            "measured": finite(self.measured),
+            "bound": finite(self.bound),
+            "ratio": finite(self.ratio()),
             "limit": self.limit.to_json(),
         })
     }
 }
 
-/// `name PASS|FAIL measured M limit L (information bound B)`.
+/// `name PASS|FAIL measured M limit L (information bound B, ratio R)`; the limit of a row
+/// with a bound is on the ratio.
 impl fmt::Display for Row {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
@@ -129,14 +158,17 @@ impl fmt::Display for Row {
             if self.passed() { "PASS" } else { "FAIL" },
             self.measured.map_or("null".into(), |x| format!("{x:.4}")),
             self.limit,
-            self.bound
-                .map_or(String::new(), |b| format!(" (information bound {b:.2})")),
+            self.bound.map_or(String::new(), |b| format!(
+                " (information bound {b:.2}, ratio {})",
+                self.ratio().map_or("null".into(), |r| format!("{r:.3}"))
+            )),
         )
     }
 }
 
-/// The suite's rows, in the order they run.
-pub const ROW_NAMES: [&str; 11] = [
+/// The suite's rows, in the order they run: first the rows of one `proposed` run each
+/// ([`TRACE_ROWS`]), then those that pool or reuse runs, and AEKF17's.
+pub const ROW_NAMES: [&str; 17] = [
     "cold_start_low",
     "cold_start_high",
     "delay_step",
@@ -144,15 +176,21 @@ pub const ROW_NAMES: [&str; 11] = [
     "delay_jitter",
     "gps_2hz",
     "gps_1hz",
+    "gps_rate_drop",
     "negative_delay",
     "out_of_range_reported",
+    "out_of_range_weak",
+    "gentle_motion",
+    "delay_ramp_coverage",
     "sigma_coverage",
+    "acquisition_sigma",
+    "valid_means_close",
     "aekf17_hover",
 ];
 
-/// The rows [`write_trace`] can trace (the `proposed` navigator on one
-/// run): every row but the last two, which are not one navigator's run.
-pub const TRACE_ROWS: &[&str] = ROW_NAMES.split_at(ROW_NAMES.len() - 2).0;
+/// The rows [`write_trace`] can trace (the `proposed` navigator on one run): the first twelve
+/// (`delay_ramp_coverage` scores `delay_ramp`'s runs, `acquisition_sigma` `cold_start_high`'s).
+pub const TRACE_ROWS: &[&str] = ROW_NAMES.split_at(12).0;
 
 /// Runs [`write_trace`] can trace beside [`TRACE_ROWS`]: the two scenarios
 /// of `sigma_coverage` (constant 0.2 s, calibrated start).
@@ -300,11 +338,12 @@ pub struct DelayResult {
 pub fn run(options: &DelayOptions, progress: ProgressFn) -> Result<DelayResult, SuiteError> {
     options.validate()?;
     let mut rows = Vec::new();
+    let mut runs = rows::Runs::default();
     for name in ROW_NAMES {
         if !options.wants(name) {
             continue;
         }
-        let row = rows::run_row(name, options);
+        let row = rows::run_row(name, options, &mut runs);
         progress(Progress::DelayRow(row.clone()));
         rows.push(row);
     }
@@ -322,7 +361,7 @@ impl DelayResult {
             .map(|r| Verdict {
                 name: r.name.to_string(),
                 passed: r.passed(),
-                measured: r.measured,
+                measured: r.judged(),
                 limit: format!("{:?} ({})", r.limit, r.criterion),
             })
             .collect()

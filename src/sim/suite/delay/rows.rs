@@ -1,8 +1,9 @@
 //! The rows of the delay suite: each row's runs, its navigator, and its figure.
 
 use super::{DelayOptions, Limit, LoopTuning, RUN_S, Row, SCORE_FROM_S};
-use crate::delay::DelayStatus;
+use crate::delay::{DelayLoopConfig, DelayStatus};
 use crate::nav::{DelayCompensatedNav, DelayMode};
+use crate::sim::PathTerm;
 use crate::sim::suite::parallel_map;
 use crate::sim::suite::setup::{
     DelayStart, UNCALIBRATED_START, calibrated_start, ekf16_config, fix_accelerations, nav_config,
@@ -13,6 +14,7 @@ use crate::sim::{
     delay_bound_s, delay_ramp_bound_s,
 };
 use crate::{AugmentedEkf17, AugmentedEkf17Config, Navigator};
+use nalgebra::Vector3;
 
 /// When `delay_step`'s delay steps, s.
 pub(super) const STEP_AT_S: f64 = 20.0;
@@ -55,6 +57,19 @@ pub(super) struct DelayTrace {
     pub estimate_s: Vec<f64>,
     pub std_s: Vec<f64>,
     pub truth_s: Vec<f64>,
+    /// What the navigator said of its delay at each point (empty for AEKF17).
+    pub health: Vec<PointHealth>,
+}
+
+/// The navigator's word on its delay at one trace point.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub(super) struct PointHealth {
+    /// `Health::delay_valid`.
+    pub valid: bool,
+    /// The loop had made a valid update.
+    pub updated: bool,
+    /// The loop's status is `Locked`.
+    pub locked: bool,
 }
 
 impl DelayTrace {
@@ -101,6 +116,30 @@ impl DelayTrace {
         }
     }
 
+    /// Points with a valid delay ([`PointHealth::valid`]) whose error exceeds three sigma, as
+    /// (far, valid).
+    pub fn valid_but_far(&self) -> (usize, usize) {
+        self.health
+            .iter()
+            .zip(self.errors_from(0.0))
+            .filter(|(h, _)| h.valid)
+            .fold((0, 0), |(far, n), (_, (_, e, s))| {
+                // A NaN error or sigma counts as far.
+                let close = e.abs() <= 3.0 * s;
+                (far + usize::from(!close), n + 1)
+            })
+    }
+
+    /// `sigma / |error|` at the points from the loop's first valid update until it locks.
+    pub fn acquisition_sigma_ratios(&self) -> impl Iterator<Item = f64> + '_ {
+        self.health
+            .iter()
+            .zip(self.errors_from(0.0))
+            .skip_while(|(h, _)| !h.updated)
+            .take_while(|(h, _)| !h.locked)
+            .map(|(_, (_, e, s))| s / e.abs())
+    }
+
     /// Fraction of points from `from_s` whose error is within one sigma,
     /// as (inside, total).
     pub fn coverage_from(&self, from_s: f64) -> (usize, usize) {
@@ -129,14 +168,19 @@ pub(super) fn trace_point(event: &SimEvent) -> Option<&Truth> {
 }
 
 /// Feeds a run to an estimator (refusals are its business) and records its
-/// delay estimate every [`TRACE_STEP_US`].
-fn trace<N: Navigator<f64>>(mut estimator: N, events: &[SimEvent]) -> DelayTrace {
+/// delay estimate every [`TRACE_STEP_US`], with what `health` says of it (`None`: nothing).
+fn trace<N: Navigator<f64>>(
+    mut estimator: N,
+    events: &[SimEvent],
+    health: impl Fn(&N) -> Option<PointHealth>,
+) -> DelayTrace {
     let mut out = DelayTrace::default();
     for event in events {
         feed(&mut estimator, event);
         let Some(truth) = trace_point(event) else {
             continue;
         };
+        out.health.extend(health(&estimator));
         let est = estimator.estimate();
         out.t_s.push(truth.t_us as f64 * 1e-6);
         out.estimate_s
@@ -168,14 +212,17 @@ pub(super) struct NavSetup {
     calibrated: bool,
     /// Delay range of the loop, s (`None`: the default).
     range_s: Option<(f64, f64)>,
-    /// The loop adapted to this GPS rate, Hz (`None`: the 10 Hz defaults).
-    gps_rate_hz: Option<f64>,
+    /// Start value of the delay, s (`None`: [`UNCALIBRATED_START`]'s).
+    start_s: Option<f64>,
+    /// From this time on, s, one GPS fix in ten reaches the navigator (`None`: all).
+    gps_tenth_from_s: Option<f64>,
 }
 
 const COLD: NavSetup = NavSetup {
     calibrated: false,
     range_s: None,
-    gps_rate_hz: None,
+    start_s: None,
+    gps_tenth_from_s: None,
 };
 
 const CALIBRATED: NavSetup = NavSetup {
@@ -201,11 +248,15 @@ pub(super) fn proposed(
         UNCALIBRATED_START
     };
     let DelayStart { delay_s, std_s } = start;
-    let mode = DelayMode::Estimated { initial_s: delay_s };
+    let mode = DelayMode::Estimated {
+        initial_s: setup.start_s.unwrap_or(delay_s),
+    };
     let mut nav_config = nav_config(config, mode, std_s, tuned.filter_rate_hz);
-    if let Some(rate_hz) = setup.gps_rate_hz {
-        nav_config.delay_loop = nav_config.delay_loop.adapted_to_gps_rate(rate_hz).ok()?;
-    }
+    // The loop's defaults whatever the GPS rate: nothing adapted by the caller (`nav_config`
+    // adapts the loop to the simulated rate, as the sweeps' user would).
+    let initial_std_s = nav_config.delay_loop.fusion.initial_std_s;
+    nav_config.delay_loop = DelayLoopConfig::default();
+    nav_config.delay_loop.fusion.initial_std_s = initial_std_s;
     if let Some((min, max)) = setup.range_s {
         nav_config.delay_loop.fusion.delay_min_s = min;
         nav_config.delay_loop.fusion.delay_max_s = max;
@@ -234,14 +285,16 @@ pub(super) fn row_run(name: &str, seed: u64) -> Option<(SimConfig, NavSetup)> {
         "delay_ramp" => (high(|p| p.ramps.push(RAMP)), COLD),
         "delay_jitter" => (high(|p| p.jitter_uniform_half_width_s = 0.020), COLD),
         "gps_2hz" | "gps_1hz" => {
-            let rate_hz = if name == "gps_2hz" { 2.0 } else { 1.0 };
+            let mut config = constant(Scenario::High, 0.2);
+            config.sensors.gps_rate_hz = if name == "gps_2hz" { 2.0 } else { 1.0 };
+            (config, COLD)
+        }
+        "gps_rate_drop" => {
             let setup = NavSetup {
-                gps_rate_hz: Some(rate_hz),
+                gps_tenth_from_s: Some(GPS_DROP_AT_S),
                 ..COLD
             };
-            let mut config = constant(Scenario::High, 0.2);
-            config.sensors.gps_rate_hz = rate_hz;
-            (config, setup)
+            (constant(Scenario::High, 0.2), setup)
         }
         "negative_delay" => {
             let setup = NavSetup {
@@ -251,8 +304,66 @@ pub(super) fn row_run(name: &str, seed: u64) -> Option<(SimConfig, NavSetup)> {
             (constant(Scenario::High, -0.15), setup)
         }
         "out_of_range_reported" => (constant(Scenario::High, -0.15), COLD),
+        "out_of_range_weak" => {
+            let mut config = constant(Scenario::Low, -0.15);
+            // The velocity noise's standard deviation doubled.
+            config.sensors.gps_velocity_var_m2_s2 *= 4.0;
+            (config, COLD)
+        }
+        "gentle_motion" => {
+            let setup = NavSetup {
+                start_s: Some(0.2),
+                ..COLD
+            };
+            (gentle_motion(seed), setup)
+        }
         _ => return None,
     })
+}
+
+/// `gps_rate_drop`'s GPS goes from 10 Hz to 1 Hz here, s.
+const GPS_DROP_AT_S: f64 = 30.0;
+/// `gentle_motion`'s run, s.
+const GENTLE_RUN_S: f64 = 120.0;
+/// `gentle_motion` is scored from here, s.
+const GENTLE_SCORE_FROM_S: f64 = 60.0;
+
+/// `gentle_motion`'s run: a ground vehicle shuttling north and back with a 6 s period (the slow
+/// path peaks at 1.8 m/s^2, the simulator's manoeuvre fills it up to a 2 m/s^2 peak), no yaw
+/// swing, IMU 200 Hz, GPS 10 Hz, true delay 0.15 s, [`GENTLE_RUN_S`] long.
+fn gentle_motion(seed: u64) -> SimConfig {
+    let mut config = sim(Scenario::Low, seed, DelayProfile::constant(0.15));
+    let period_s = 6.0;
+    let w = core::f64::consts::TAU / period_s;
+    config.trajectory.path = vec![PathTerm {
+        amplitude_m: Vector3::new(1.8 / (w * w), 0.0, 0.0),
+        period_s,
+        phase_rad: 0.0,
+    }];
+    config.trajectory.accel_limit_m_s2 = 2.0;
+    config.trajectory.yaw_amplitude_rad = 0.0;
+    config.sensors.imu_rate_hz = 200.0;
+    config.sensors.gps_rate_hz = 10.0;
+    config.duration_s = GENTLE_RUN_S;
+    config
+}
+
+/// The events of a row's run as its navigator sees them: [`events`], with one GPS fix in ten
+/// from [`NavSetup::gps_tenth_from_s`] on.
+pub(super) fn row_events(config: &SimConfig, setup: NavSetup) -> Option<Vec<SimEvent>> {
+    let mut all = events(config)?;
+    if let Some(from_s) = setup.gps_tenth_from_s {
+        let from_us = (from_s * 1e6) as u64;
+        let mut fixes = 0u64;
+        all.retain(|e| match e {
+            SimEvent::Gps { .. } if e.t_us() >= from_us => {
+                fixes += 1;
+                fixes % 10 == 1
+            }
+            _ => true,
+        });
+    }
+    Some(all)
 }
 
 /// Runs `f` on every seed on `threads` threads; results in seed order.
@@ -267,7 +378,14 @@ fn row_traces(run: &str, seeds: &[u64], options: &DelayOptions) -> Option<Vec<De
     per_seed(seeds, options.threads, |seed| {
         let (config, setup) = row_run(run, seed)?;
         let estimator = proposed(&config, setup, tuned)?;
-        Some(trace(estimator, &events(&config)?))
+        Some(trace(estimator, &row_events(&config, setup)?, |nav| {
+            let h = nav.health();
+            Some(PointHealth {
+                valid: h.delay_valid,
+                updated: h.delay.valid_updates > 0,
+                locked: h.delay.status.is_some_and(|s| s.is_locked()),
+            })
+        }))
     })
     .into_iter()
     .collect()
@@ -275,54 +393,177 @@ fn row_traces(run: &str, seeds: &[u64], options: &DelayOptions) -> Option<Vec<De
 
 /// Median over the seeds of the delay RMSE from 20 s, ms.
 pub(super) fn median_rmse_ms(traces: &[DelayTrace]) -> f64 {
-    median(
-        traces
-            .iter()
-            .map(|t| t.rmse_from(SCORE_FROM_S) * 1e3)
-            .collect(),
-    )
+    median_rmse_ms_from(traces, SCORE_FROM_S)
 }
 
-/// Runs the row `name` (one of [`ROW_NAMES`](super::ROW_NAMES)).
-pub(super) fn run_row(name: &'static str, options: &DelayOptions) -> Row {
-    let rmse = "delay RMSE from 20 s, ms (median over seeds)";
+/// Median over the seeds of the delay RMSE from `from_s`, ms.
+fn median_rmse_ms_from(traces: &[DelayTrace], from_s: f64) -> f64 {
+    median(traces.iter().map(|t| t.rmse_from(from_s) * 1e3).collect())
+}
+
+/// The runs whose traces `valid_means_close` pools: every row's `proposed` run whose true
+/// delay lies in the loop's range, and `sigma_coverage`'s two.
+fn valid_runs() -> impl Iterator<Item = &'static str> {
+    super::TRACE_ROWS
+        .iter()
+        .copied()
+        .filter(|r| !r.starts_with("out_of_range"))
+        .chain(super::EXTRA_TRACES)
+}
+
+/// The traces of the runs made so far, by run name: the rows that score the same runs
+/// (`delay_ramp_coverage`, `acquisition_sigma`, `valid_means_close`) share them.
+#[derive(Default)]
+pub(super) struct Runs {
+    traces: Vec<(&'static str, Option<Vec<DelayTrace>>)>,
+}
+
+impl Runs {
+    /// The traces of `run` (a row, or one of [`EXTRA_TRACES`](super::EXTRA_TRACES) on the
+    /// coverage seeds), made on first use; `None` when its navigator refuses the setup.
+    fn traces(&mut self, run: &'static str, options: &DelayOptions) -> Option<&[DelayTrace]> {
+        if !self.traces.iter().any(|(n, _)| *n == run) {
+            let seeds = if super::EXTRA_TRACES.contains(&run) {
+                &options.coverage_seeds
+            } else {
+                &options.seeds
+            };
+            self.traces.push((run, row_traces(run, seeds, options)));
+        }
+        self.traces
+            .iter()
+            .find(|(n, _)| *n == run)
+            .and_then(|(_, t)| t.as_deref())
+    }
+}
+
+/// Runs the row `name` (one of [`ROW_NAMES`](super::ROW_NAMES)), with the traces of `runs`.
+pub(super) fn run_row(name: &'static str, options: &DelayOptions, runs: &mut Runs) -> Row {
+    let ratio = "delay RMSE from 20 s, ms (median over seeds), judged on its ratio to the bound";
     match name {
-        "cold_start_low" => rmse_row(name, options, 6.0, rmse),
-        "cold_start_high" => rmse_row(name, options, 4.0, rmse),
-        "delay_step" => delay_step_row(options),
-        "delay_ramp" => rmse_row(name, options, 10.0, rmse),
-        "delay_jitter" => rmse_row(
+        "cold_start_low" => bound_row(name, options, runs, 2.0, ratio),
+        "cold_start_high" => bound_row(name, options, runs, 1.2, ratio),
+        "delay_step" => delay_step_row(options, runs),
+        "delay_ramp" => bound_row(
             name,
             options,
-            5.0,
-            "delay RMSE against 0.2 s from 20 s, ms (median)",
+            runs,
+            1.6,
+            "delay RMSE from 20 s, ms (median), judged on its ratio to the bound of a line",
         ),
-        "gps_2hz" => rmse_row(name, options, 20.0, rmse),
-        "gps_1hz" => rmse_row(name, options, 40.0, rmse),
-        "negative_delay" => rmse_row(
+        "delay_ramp_coverage" => {
+            let share = runs
+                .traces("delay_ramp", options)
+                .and_then(|t| pooled_share(t.iter().map(|t| t.coverage_from(SCORE_FROM_S))));
+            Row {
+                name,
+                criterion: "delay_ramp's runs: fraction of samples from 20 s with |error| <= reported 1-sigma, pooled",
+                measured: share,
+                limit: Limit::Band(0.5, 0.9),
+                bound: None,
+            }
+        }
+        "delay_jitter" => bound_row(
             name,
             options,
-            10.0,
-            "delay RMSE from 20 s, true -0.15 s, range -0.5..0.6 s, ms (median)",
+            runs,
+            1.25,
+            "delay RMSE against 0.2 s from 20 s, ms (median), judged on its ratio to the bound",
         ),
-        "out_of_range_reported" => out_of_range_row(options),
-        "sigma_coverage" => sigma_coverage_row(options),
+        "gps_2hz" => bound_row(name, options, runs, 1.5, ratio),
+        "gps_1hz" => bound_row(name, options, runs, 2.0, ratio),
+        "gps_rate_drop" => Row {
+            name,
+            criterion: "GPS 10 Hz, then 1 Hz from 30 s: delay RMSE from 40 s, ms (median)",
+            measured: runs
+                .traces(name, options)
+                .map(|t| median_rmse_ms_from(t, 40.0)),
+            limit: Limit::Max(40.0),
+            bound: None,
+        },
+        "negative_delay" => bound_row(
+            name,
+            options,
+            runs,
+            2.0,
+            "delay RMSE from 20 s, true -0.15 s, range -0.5..0.6 s, ms (median), judged on its ratio to the bound",
+        ),
+        "out_of_range_reported" => out_of_range_row(
+            name,
+            options,
+            30.0,
+            "s from the start until the below-range status is raised, true -0.15 s, default range (median)",
+        ),
+        "out_of_range_weak" => out_of_range_row(
+            name,
+            options,
+            40.0,
+            "low, GPS velocity noise doubled: s until the below-range status, true -0.15 s, default range (median)",
+        ),
+        "sigma_coverage" => sigma_coverage_row(options, runs),
+        "gentle_motion" => Row {
+            name,
+            criterion: "ground vehicle shuttling at 2 m/s^2 peak, true 0.15 s, start 0.2 s: delay RMSE from 60 s, ms (median)",
+            measured: runs
+                .traces(name, options)
+                .map(|t| median_rmse_ms_from(t, GENTLE_SCORE_FROM_S)),
+            limit: Limit::Max(10.0),
+            bound: None,
+        },
+        "acquisition_sigma" => {
+            let ratios: Option<Vec<f64>> = runs.traces("cold_start_high", options).map(|t| {
+                t.iter()
+                    .flat_map(DelayTrace::acquisition_sigma_ratios)
+                    .collect()
+            });
+            Row {
+                name,
+                criterion: "cold_start_high's runs, from the first valid update until Locked: median of sigma / |error|, pooled",
+                measured: ratios.map(super::super::stats::median_ordered),
+                limit: Limit::Band(0.5, 5.0),
+                bound: None,
+            }
+        }
+        "valid_means_close" => {
+            let mut pooled = Some(Vec::new());
+            for run in valid_runs() {
+                match (runs.traces(run, options), pooled.as_mut()) {
+                    (Some(t), Some(p)) => p.extend(t.iter().map(DelayTrace::valid_but_far)),
+                    _ => pooled = None,
+                }
+            }
+            Row {
+                name,
+                criterion: "every row's run with the delay in range: fraction of the samples with delay_valid whose |error| > 3 sigma, pooled",
+                measured: pooled.and_then(|p| pooled_share(p.into_iter())),
+                limit: Limit::Max(0.01),
+                bound: None,
+            }
+        }
         _ => aekf17_hover_row(options),
     }
 }
 
-fn rmse_row(
+/// `sum(count) / sum(total)` of `(count, total)` pairs; `None` without a total.
+fn pooled_share(pairs: impl Iterator<Item = (usize, usize)>) -> Option<f64> {
+    let (k, n) = pairs.fold((0, 0), |(k, n), (a, b)| (k + a, n + b));
+    (n > 0).then(|| k as f64 / n as f64)
+}
+
+/// A row of the delay RMSE from 20 s with its information bound, judged on the ratio (at most
+/// `limit_ratio`).
+fn bound_row(
     name: &'static str,
     options: &DelayOptions,
-    limit_ms: f64,
+    runs: &mut Runs,
+    limit_ratio: f64,
     criterion: &'static str,
 ) -> Row {
-    let measured = row_traces(name, &options.seeds, options).map(|t| median_rmse_ms(&t));
     Row {
         name,
         criterion,
-        measured,
-        limit: Limit::Max(limit_ms),
+        measured: runs.traces(name, options).map(median_rmse_ms),
+        limit: Limit::Max(limit_ratio),
         bound: information_bound_ms(name, &options.seeds, options.threads),
     }
 }
@@ -365,8 +606,8 @@ pub(super) fn run_information_bound_s(
 
 /// High, calibrated start, 0.2 -> 0.35 s at 20 s: seconds after the step
 /// until the error stays within 10 ms (median; infinite when never).
-fn delay_step_row(options: &DelayOptions) -> Row {
-    let measured = row_traces("delay_step", &options.seeds, options).map(|traces| {
+fn delay_step_row(options: &DelayOptions, runs: &mut Runs) -> Row {
+    let measured = runs.traces("delay_step", options).map(|traces| {
         median_with_infinity(
             traces
                 .iter()
@@ -385,11 +626,16 @@ fn delay_step_row(options: &DelayOptions) -> Row {
 
 /// True -0.15 s with the default range `[0, 1] s`: seconds from the start
 /// until the loop reports the delay below its range (median; infinite when
-/// never).
-fn out_of_range_row(options: &DelayOptions) -> Row {
+/// never), at most `limit_s`.
+fn out_of_range_row(
+    name: &'static str,
+    options: &DelayOptions,
+    limit_s: f64,
+    criterion: &'static str,
+) -> Row {
     let tuned = options.tuned();
     let times = per_seed(&options.seeds, options.threads, |seed| {
-        let (config, setup) = row_run("out_of_range_reported", seed)?;
+        let (config, setup) = row_run(name, seed)?;
         let mut estimator = proposed(&config, setup, tuned)?;
         for event in &events(&config)? {
             feed(&mut estimator, event);
@@ -406,39 +652,31 @@ fn out_of_range_row(options: &DelayOptions) -> Row {
         Some(f64::INFINITY)
     });
     Row {
-        name: "out_of_range_reported",
-        criterion: "s from the start until the below-range status is raised, true -0.15 s, default range (median)",
+        name,
+        criterion,
         measured: times
             .into_iter()
             .collect::<Option<Vec<f64>>>()
             .map(median_with_infinity),
-        limit: Limit::Max(30.0),
+        limit: Limit::Max(limit_s),
         bound: None,
     }
 }
 
 /// Low and high, calibrated start, pooled over the coverage seeds: fraction
 /// of the trace points from 10 s whose error is within the reported 1-sigma.
-fn sigma_coverage_row(options: &DelayOptions) -> Row {
-    let mut inside = 0usize;
-    let mut total = 0usize;
-    let mut refused = false;
+fn sigma_coverage_row(options: &DelayOptions, runs: &mut Runs) -> Row {
+    let mut pooled = Some(Vec::new());
     for run in super::EXTRA_TRACES {
-        match row_traces(run, &options.coverage_seeds, options) {
-            Some(traces) => {
-                for t in &traces {
-                    let (i, n) = t.coverage_from(10.0);
-                    inside += i;
-                    total += n;
-                }
-            }
-            None => refused = true,
+        match (runs.traces(run, options), pooled.as_mut()) {
+            (Some(t), Some(p)) => p.extend(t.iter().map(|t| t.coverage_from(10.0))),
+            _ => pooled = None,
         }
     }
     Row {
         name: "sigma_coverage",
         criterion: "fraction of samples from 10 s with |error| <= reported 1-sigma, low and high, calibrated start, pooled",
-        measured: (!refused && total > 0).then(|| inside as f64 / total as f64),
+        measured: pooled.and_then(|p| pooled_share(p.into_iter())),
         limit: Limit::Band(0.55, 0.80),
         bound: None,
     }
@@ -449,7 +687,7 @@ fn sigma_coverage_row(options: &DelayOptions) -> Row {
 fn aekf17_hover_row(options: &DelayOptions) -> Row {
     let ratios = per_seed(&options.seeds, options.threads, |seed| {
         let (config, aekf) = aekf17_hover(seed, &super::HoverSetup::default())?;
-        let t = trace(aekf, &events(&config)?);
+        let t = trace(aekf, &events(&config)?, |_| None);
         let k = t.t_s.len().checked_sub(1)?;
         Some((t.estimate_s[k] - t.truth_s[k]).abs() / t.std_s[k])
     });

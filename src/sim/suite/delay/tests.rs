@@ -161,12 +161,36 @@ fn the_row_line_says_pass_fail_and_the_bound() {
     };
     assert_eq!(
         passing.to_string(),
-        "synthetic              PASS   measured     2.0000 limit Max(6.0) (information bound 1.23)"
+        "synthetic              PASS   measured     2.0000 limit Max(6.0) (information bound 1.23, ratio 1.621)"
     );
     assert_eq!(
         row(None, Limit::Band(0.55, 0.8)).to_string(),
         "synthetic              FAIL   measured       null limit Band(0.55, 0.8)"
     );
+}
+
+#[test]
+fn a_row_with_a_bound_is_judged_on_its_ratio() {
+    let bounded = |measured: Option<f64>, bound: f64| Row {
+        bound: Some(bound),
+        ..row(measured, Limit::Max(2.0))
+    };
+    // 9 ms against a 5 ms bound: 1.8x, within 2 (the 9 ms itself is not judged).
+    let near = bounded(Some(9.0), 5.0);
+    assert_eq!(near.ratio(), Some(1.8));
+    assert!(near.passed());
+    let far = bounded(Some(10.5), 5.0);
+    assert!(!far.passed());
+    let json = far.to_json();
+    assert_eq!(json["measured"], 10.5);
+    assert_eq!(json["bound"], 5.0);
+    assert_eq!(json["ratio"], 2.1);
+    assert_eq!(json["limit"], 2.0);
+    // No figure: no ratio, a failure; a row without a bound has a null bound and ratio.
+    assert!(!bounded(None, 5.0).passed() && bounded(None, 5.0).ratio().is_none());
+    let absolute = row(Some(1.5), Limit::Max(2.0)).to_json();
+    assert!(absolute["bound"].is_null() && absolute["ratio"].is_null());
+    assert_eq!(absolute["passed"], true);
 }
 
 #[test]

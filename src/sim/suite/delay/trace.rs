@@ -1,7 +1,8 @@
 //! One row's run on one seed, per second as CSV: what a delay figure is made of.
 
 use super::rows::{
-    Tuned, aekf17_hover, events, feed, proposed, row_run, run_information_bound_s, trace_point,
+    Tuned, aekf17_hover, events, feed, proposed, row_events, row_run, run_information_bound_s,
+    trace_point,
 };
 use super::{LoopTuning, SCORE_FROM_S};
 use crate::delay::{DefaultDelayLoop, DelayStatus};
@@ -301,7 +302,9 @@ pub fn write_trace(
     let Some((config, setup)) = row_run(name, options.seed) else {
         return Ok(None);
     };
-    let (Some(mut nav), Some(events)) = (proposed(&config, setup, tuned), events(&config)) else {
+    let (Some(mut nav), Some(events)) =
+        (proposed(&config, setup, tuned), row_events(&config, setup))
+    else {
         return Ok(None);
     };
     let mut comparison = None;
