@@ -158,6 +158,7 @@ mod mag_queue;
 mod refusals;
 mod timeline;
 mod whitening;
+pub mod yaw_gsf;
 
 #[cfg(test)]
 mod memory;
@@ -168,6 +169,7 @@ pub use health::{
     MAX_VELOCITY_STD_M_S, ResetCause, ResetRecord,
 };
 pub use refusals::{NavRefusals, NavWork};
+pub use yaw_gsf::{YAW_GSF_MODELS, YawGsf};
 
 use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
