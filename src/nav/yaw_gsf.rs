@@ -335,6 +335,43 @@ impl<T: Scalar> YawGsf<T> {
     }
 }
 
+/// The yaw estimator as the navigator reports it in
+/// [`Health::yaw_gsf`](super::Health::yaw_gsf).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct YawGsfHealth<T: Scalar> {
+    /// The composite yaw, rad east of north, and its standard deviation,
+    /// rad (module docs); `None` before the bank started.
+    pub yaw_rad: Option<(T, T)>,
+    /// The models' weights (sum 1 once started, all 0 before).
+    pub weights: [T; YAW_GSF_MODELS],
+    /// The composite's standard deviation is below
+    /// [`CONVERGED_YAW_STD_RAD`] after at least one fused velocity.
+    pub converged: bool,
+    /// GPS velocities fused since the bank's start (saturates).
+    pub updates: u16,
+    /// Restarts after a non-finite state or weights (saturates).
+    pub restarts: u16,
+    /// Times the navigator set its heading from the bank: the alignment
+    /// without a magnetometer, and each reset after a sustained
+    /// disagreement (saturates).
+    pub yaw_resets: u16,
+}
+
+impl<T: Scalar> YawGsf<T> {
+    /// The bank's part of [`YawGsfHealth`] (`yaw_resets` is the caller's).
+    pub fn health(&self, yaw_resets: u16) -> YawGsfHealth<T> {
+        YawGsfHealth {
+            yaw_rad: self.yaw().map(|(y, var)| (y, var.max(T::zero()).sqrt())),
+            weights: self.w,
+            converged: self.converged_yaw().is_some(),
+            updates: self.updates,
+            restarts: self.restarts,
+            yaw_resets,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
