@@ -45,9 +45,9 @@ fn no_mag(scenario: Scenario, seed: u64, duration_s: f64) -> SimConfig {
 
 /// Switched on in flight at 20 s without a magnetometer, the trajectory turned by 150 deg: the
 /// horizon filter aligns its yaw at 0 (0.5 rad of standard deviation), 150 deg off, and does
-/// not find the heading by itself (54 deg off at 50 s without the bank's resets, 90 deg RMS
-/// over 25-50 s). The bank converges and its resets bring the heading within 8 deg RMS over
-/// 25-50 s, each counted and recorded.
+/// not find the heading by itself (without the bank's resets 54 deg off at 48 s, 82 deg RMS
+/// of the 3-s samples over 24-48 s). The bank converges and its resets bring the heading
+/// within 8 deg RMS over 25-50 s (5.4 deg measured), each counted and recorded.
 #[test]
 fn the_yaw_estimator_aligns_the_heading_in_flight_without_a_magnetometer() {
     let mut sim = no_mag(Scenario::Low, 2, 50.0);
