@@ -375,6 +375,9 @@ FAULTS = {
     "hard_iron": "hard-iron offset of 30 % of the field, body frame, not in the config",
     "inflight_start": "switched on at 12 s in a 15 m/s level turn, 20 deg bank, 2 m/s^2 RMS "
                       "vibration",
+    "no_magnetometer": "no magnetometer at all, start on the ground",
+    "no_magnetometer_inflight": "no magnetometer, switched on at 20 s in flight",
+    "inflight_tilt_5s": "switched on at 20 s in flight, with the magnetometer",
 }
 
 

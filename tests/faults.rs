@@ -268,6 +268,9 @@ fn suite() -> Vec<FaultResult> {
         .collect()
 }
 
+/// The rows that fail today (`.ci/run`'s `--known-failures` of the fault suite).
+const KNOWN_FAILURES: [&str; 2] = ["hard_iron", "inflight_tilt_5s"];
+
 /// Every row of issue 10 passes on the issue's 60 s runs (whole windows: see
 /// `the_rows_windows_are_the_issue_s`), with the navigator and start of `reproduce --faults`.
 #[test]
@@ -291,21 +294,23 @@ fn every_row_of_the_suite_passes_at_full_scale() {
             ("mag_late", 1.2),
             ("hard_iron", 1.5),
             ("inflight_start", 2.0),
+            ("no_magnetometer", 5.0),
+            ("no_magnetometer_inflight", 5.0),
+            ("inflight_tilt_5s", 2.5),
         ]
     );
     for r in &results {
         eprintln!("{} {:.3} {:?} {}", r.name, r.measured, r.note, r.passed);
         assert!(!r.criterion.is_empty());
     }
-    // Known failure: no hard-iron estimation (a 30 % offset not in the
-    // config: 10.0 times the clean yaw RMSE, limit 1.5); measured, finite.
-    let hard_iron = results.iter().find(|r| r.name == "hard_iron").unwrap();
-    assert!(hard_iron.measured.is_finite(), "{hard_iron:?}");
-    let failed: Vec<&FaultResult> = results
+    // The known failures of `.ci/run` (the faster in-flight alignment is not done): they
+    // still fail; when one passes, it leaves both lists.
+    let failed: Vec<&str> = results
         .iter()
-        .filter(|r| !r.passed && r.name != "hard_iron")
+        .filter(|r| !r.passed)
+        .map(|r| r.name)
         .collect();
-    assert!(failed.is_empty(), "rows failing: {failed:?}");
+    assert_eq!(failed, KNOWN_FAILURES, "rows failing: {results:?}");
     let mag = &results[10];
     assert!(
         mag.note
@@ -336,7 +341,8 @@ fn windows(case: &FaultCase) -> (Window, Window) {
         // No magnetometer for `after_s` after the first fix; no event before `t_s`.
         [Fault::MagLate { after_s }] => (0.0, after_s),
         [Fault::StartAt { t_s }] => (0.0, t_s),
-        // A sensor error of the whole run (the hard-iron offset).
+        // A sensor error of the whole run (the hard-iron offset), or the simulated run's own
+        // fault (no magnetometer): the whole run.
         [] => (0.0, end),
         _ => panic!("{}: one fault per row", case.name),
     };
@@ -346,7 +352,9 @@ fn windows(case: &FaultCase) -> (Window, Window) {
         | Metric::TiltRmseRatio { from_s }
         | Metric::HeadingRmseRatio { from_s }
         | Metric::MaxHeading { from_s, .. } => (from_s, end),
-        Metric::HorizontalAt { t_s } | Metric::TiltAt { t_s } => (t_s, t_s),
+        Metric::HorizontalAt { t_s } | Metric::TiltAt { t_s } | Metric::HeadingAt { t_s } => {
+            (t_s, t_s)
+        }
     };
     (fault, scored)
 }
@@ -383,6 +391,9 @@ fn the_rows_windows_are_the_issue_s() {
             ("mag_late", 60.0, (0.0, 5.0), (10.0, 60.0)),
             ("hard_iron", 60.0, whole, (10.0, 60.0)),
             ("inflight_start", 60.0, (0.0, 12.0), (17.0, 17.0)),
+            ("no_magnetometer", 60.0, whole, (30.0, 30.0)),
+            ("no_magnetometer_inflight", 60.0, (0.0, 20.0), (35.0, 35.0)),
+            ("inflight_tilt_5s", 60.0, (0.0, 20.0), (25.0, 25.0)),
         ]
     );
     // A settle row leaves more of the run than its limit: settling late is seen as late.

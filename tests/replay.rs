@@ -210,6 +210,23 @@ fn ardupilot_velocity_matches_speed_and_course() {
     assert!(checked > 100, "only {checked} moving rows");
 }
 
+/// `drop_mag` (the replay's `--no-mag`) leaves every IMU and GPS record and no magnetometer one.
+#[test]
+fn dropping_the_magnetometer_keeps_every_other_record() {
+    let Some(dir) = log171() else { return };
+    let (all, _) = read_all::<f64>(&dir, &ReaderOptions::default());
+    let options = ReaderOptions {
+        drop_mag: true,
+        ..ReaderOptions::default()
+    };
+    let (without, _) = read_all::<f64>(&dir, &options);
+    let is_mag = |e: &&SensorEvent<f64>| matches!(e, SensorEvent::Mag(_));
+    assert!(all.iter().filter(is_mag).count() > 1000);
+    assert_eq!(without.iter().filter(is_mag).count(), 0);
+    let others: Vec<&SensorEvent<f64>> = all.iter().filter(|e| !is_mag(e)).collect();
+    assert_eq!(without.iter().collect::<Vec<_>>(), others);
+}
+
 #[test]
 fn ardupilot_magnetometer_is_in_gauss() {
     let Some(dir) = log171() else { return };

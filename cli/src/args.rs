@@ -194,6 +194,10 @@ pub struct LogArgs {
     /// derived from the log; its `ekf` table configures every estimator.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
+    /// Drop the log's magnetometer records: yaw from GPS velocity and the
+    /// IMU alone (the navigator's Gaussian sum of yaw filters).
+    #[arg(long)]
+    pub no_mag: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -228,6 +232,7 @@ impl LogArgs {
             gyro_noise_density: self.gyro_noise_density,
             accel_bias_random_walk: self.accel_bias_random_walk,
             config_file: self.config.clone(),
+            no_mag: self.no_mag,
         })
     }
 }

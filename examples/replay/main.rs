@@ -129,6 +129,10 @@ struct Args {
     /// Write the resolved configuration as TOML to stdout and exit.
     #[arg(long)]
     print_config: bool,
+    /// Drop the log's magnetometer records: heading from the GPS velocity
+    /// and the IMU alone (the navigator's yaw estimator).
+    #[arg(long)]
+    no_mag: bool,
 }
 
 impl Args {
@@ -151,6 +155,7 @@ impl Args {
             gyro_noise_density: self.gyro_noise_density,
             accel_bias_random_walk: self.accel_bias_random_walk,
             config_file: self.config.clone(),
+            no_mag: self.no_mag,
         }
     }
 }

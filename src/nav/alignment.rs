@@ -1,13 +1,20 @@
 //! Control apart from fusion: where the start-up stands, how an alignment
 //! made in motion or after a reset is refined, and what a reset keeps.
 
+use super::health::HEADING_STALE_US;
 use super::health::{AlignmentState, ResetCause, ResetRecord};
 use super::timeline::StreamClock;
-use super::{DelayCompensatedNav, MOVING_SPEED_M_S, MOVING_TILT_STD_RAD};
-use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, QUAT, attitude_covariance};
+use super::{
+    DelayCompensatedNav, GSF_DISAGREEMENT_FIXES, GSF_DISAGREEMENT_RAD, GSF_PREDICT_PERIOD_US,
+    MOVING_SPEED_M_S, MOVING_TILT_STD_RAD,
+};
+use crate::ekf16::NavState;
+use crate::ekf16::measurement::yaw_direction;
+use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, QUAT, StateCovariance, VEL, attitude_covariance};
+use crate::geo::wrap_pi;
 use crate::scalar::Scalar;
 use crate::zero_option::ZeroOption;
-use nalgebra::{SVector, Vector3};
+use nalgebra::{Quaternion, SVector, UnitQuaternion, Vector3};
 
 impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// Restarts the navigator as if new, keeping its configuration and its
@@ -66,6 +73,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.mag_at_horizon = false;
         self.geodetic_fixes = ZeroOption::None;
         self.present_accel = Vector3::zeros();
+        self.yaw_gsf.clear();
+        self.gsf_disagreements = 0;
+        self.gsf_step = ([T::zero(); 2], T::zero(), 0);
     }
 
     /// Where the navigator is in its start-up.
@@ -124,15 +134,172 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 p[(GYRO_BIAS + i, GYRO_BIAS + i)] = variances[3 + i];
             }
         }
+        self.rebuild_horizon(t_us, &x, &p);
+    }
+
+    /// Rebuilds the horizon EKF from a state and covariance (same time and
+    /// origin), in place (this runs in a push): the old filter's counters
+    /// are kept; on error nothing changed.
+    fn rebuild_horizon(&mut self, t_us: u64, x: &NavState<T>, p: &StateCovariance<T>) -> bool {
         let mut config = self.config.ekf;
         if let Some(frame) = self.ekf.frame() {
             config.origin = Some(frame.origin());
         }
-        // In place (this runs in a push): the old filter's counters are
-        // kept; on error nothing changed.
         let refusals = self.horizon_refusals();
-        if self.ekf.configure_from_state(config, t_us, &x, &p).is_ok() {
+        let rebuilt = self.ekf.configure_from_state(config, t_us, x, p).is_ok();
+        if rebuilt {
             self.refusals.horizon = refusals;
+        }
+        rebuilt
+    }
+
+    /// The horizon filter's horizontal velocity (NED, m/s), its heading as
+    /// the unit vector `[cos yaw, sin yaw]` (from the rotation matrix's
+    /// first column, no trigonometry) and its time; `None` until
+    /// initialized or when the body x axis is vertical.
+    pub(super) fn horizon_heading(&self) -> Option<([T; 2], [T; 2], u64)> {
+        let t_us = self.ekf.time_us().filter(|_| self.ekf.is_initialized())?;
+        let x = self.ekf.state_vector();
+        let (q0, q1, q2, q3) = (x[QUAT], x[QUAT + 1], x[QUAT + 2], x[QUAT + 3]);
+        let two = T::lit(2.0);
+        let (r00, r10) = (
+            T::one() - two * (q2 * q2 + q3 * q3),
+            two * (q1 * q2 + q0 * q3),
+        );
+        let h = r00.hypot(r10);
+        (h > T::lit(1e-3)).then(|| ([x[VEL], x[VEL + 1]], [r00 / h, r10 / h], t_us))
+    }
+
+    /// After a prediction of the horizon filter from `before` (its
+    /// [`horizon_heading`](Self::horizon_heading) then): the step's
+    /// horizontal velocity change, turned into the heading frame, and its
+    /// yaw change are added to the yaw estimator's step (turned by the yaw
+    /// accumulated so far, to second order); the estimator predicts over
+    /// its step once it spans [`GSF_PREDICT_PERIOD_US`] (`yaw_gsf.rs`).
+    /// The changes are the prediction's alone: fusions happen outside it.
+    pub(super) fn predict_yaw_gsf(&mut self, before: Option<([T; 2], [T; 2], u64)>) {
+        let (Some((v0, h0, t0)), Some((v1, h1, t1))) = (before, self.horizon_heading()) else {
+            return;
+        };
+        if t1 <= t0 || self.mag_recent(t1) {
+            return;
+        }
+        // sin of the yaw change: the change itself to third order.
+        let dyaw = h0[0] * h1[1] - h0[1] * h1[0];
+        let (dvn, dve) = (v1[0] - v0[0], v1[1] - v0[1]);
+        let (hx, hy) = (h0[0] * dvn + h0[1] * dve, h0[0] * dve - h0[1] * dvn);
+        let (dv, yaw, us) = &mut self.gsf_step;
+        let (c, s) = (T::one() - *yaw * *yaw * T::lit(0.5), *yaw);
+        dv[0] += c * hx - s * hy;
+        dv[1] += s * hx + c * hy;
+        *yaw += dyaw;
+        *us = us.saturating_add(u32::try_from(t1 - t0).unwrap_or(u32::MAX));
+        if u64::from(*us) >= GSF_PREDICT_PERIOD_US {
+            self.flush_yaw_gsf();
+        }
+    }
+
+    /// A magnetometer update was fused within [`HEADING_STALE_US`] of the
+    /// horizon time `t_h_us`: the yaw estimator rests.
+    fn mag_recent(&self, t_h_us: u64) -> bool {
+        self.ekf
+            .last_mag_fused_us()
+            .is_some_and(|t| t_h_us <= t.saturating_add(HEADING_STALE_US))
+    }
+
+    /// The yaw estimator predicts over the step accumulated since its last
+    /// prediction.
+    pub(super) fn flush_yaw_gsf(&mut self) {
+        let (dv, yaw, us) = self.gsf_step;
+        if us > 0 {
+            self.yaw_gsf
+                .predict(dv, yaw, T::seconds_from_us(u64::from(us)));
+            self.gsf_step = ([T::zero(); 2], T::zero(), 0);
+        }
+    }
+
+    /// After a fix fused (or the alignment from it) at the horizon: the
+    /// yaw estimator fuses its velocity when no magnetometer update is
+    /// recent ([`HEADING_STALE_US`]; else it rests, cleared); once it has
+    /// converged, the horizon
+    /// filter's heading is set from it when the two disagree for
+    /// [`GSF_DISAGREEMENT_FIXES`] fixes in a row, by more than
+    /// [`GSF_DISAGREEMENT_RAD`] and three standard deviations of their
+    /// difference: the alignment in flight without a magnetometer, or
+    /// with one that is refused. Each reset is counted in
+    /// `Health::yaw_gsf.yaw_resets` and recorded as [`ResetCause::YawGsf`].
+    #[inline(never)]
+    pub(super) fn fuse_yaw_gsf(&mut self, velocity_ned_m_s: &Vector3<T>, std_m_s: Option<T>) {
+        let std = std_m_s.unwrap_or(self.config.ekf.gps_velocity_std_m_s);
+        if self.ekf.time_us().is_some_and(|t| self.mag_recent(t)) {
+            // The magnetometer holds the heading: the bank rests, and
+            // starts afresh when the magnetometer goes stale.
+            if self.yaw_gsf.is_started() {
+                self.yaw_gsf.clear();
+                self.gsf_step = ([T::zero(); 2], T::zero(), 0);
+            }
+            self.gsf_disagreements = 0;
+            return;
+        }
+        self.flush_yaw_gsf();
+        self.yaw_gsf
+            .update([velocity_ned_m_s[0], velocity_ned_m_s[1]], std);
+        let (Some((yaw, var)), Some((_, h, _))) =
+            (self.yaw_gsf.converged_yaw(), self.horizon_heading())
+        else {
+            self.gsf_disagreements = 0;
+            return;
+        };
+        // The horizon filter's heading variance: dpsi/dq = 4 dq/dpsi for a unit q.
+        let x = self.ekf.state_vector();
+        let q = Quaternion::new(x[QUAT], x[QUAT + 1], x[QUAT + 2], x[QUAT + 3]);
+        let d = yaw_direction(&q) * T::lit(4.0);
+        let p = self.ekf.covariance().fixed_view::<4, 4>(QUAT, QUAT);
+        let ours_var = (d.transpose() * p * d)[0].max(T::zero());
+        let diff = wrap_pi(yaw - h[1].atan2(h[0]));
+        let bound = T::lit(GSF_DISAGREEMENT_RAD).max(T::lit(3.0) * (var + ours_var).sqrt());
+        if diff.abs() > bound {
+            self.gsf_disagreements = self.gsf_disagreements.saturating_add(1);
+        } else {
+            self.gsf_disagreements = 0;
+        }
+        if self.gsf_disagreements >= GSF_DISAGREEMENT_FIXES {
+            self.reset_yaw(diff, var);
+        }
+    }
+
+    /// Turns the horizon filter's attitude by `diff_rad` about down and
+    /// sets its heading variance to `var_rad2` (tilt variance kept, the
+    /// attitude's cross-covariances cleared).
+    #[inline(never)]
+    fn reset_yaw(&mut self, diff_rad: T, var_rad2: T) {
+        let (Some(mut x), Some(t_us)) = (self.ekf.nav_state(), self.ekf.time_us()) else {
+            return;
+        };
+        let mut p = *self.ekf.covariance();
+        let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), diff_rad);
+        x.attitude = turn * x.attitude;
+        for i in QUAT..QUAT + 4 {
+            for j in 0..16 {
+                p[(i, j)] = T::zero();
+                p[(j, i)] = T::zero();
+            }
+        }
+        let tilt = self.ekf.tilt_std();
+        p.fixed_view_mut::<4, 4>(QUAT, QUAT)
+            .copy_from(&attitude_covariance(
+                &x.attitude,
+                tilt,
+                tilt,
+                var_rad2.sqrt(),
+            ));
+        self.gsf_disagreements = 0;
+        if self.rebuild_horizon(t_us, &x, &p) {
+            self.gsf_yaw_resets = self.gsf_yaw_resets.saturating_add(1);
+            self.last_reset = ZeroOption::Some(ResetRecord {
+                t_us: self.imu_clock.last(),
+                cause: ResetCause::YawGsf,
+            });
         }
     }
 }

@@ -72,6 +72,10 @@ pub enum ResetCause {
     /// The horizon EKF reset one GPS block (position or velocity) to a fix:
     /// sustained rejection or divergence (the record says which).
     Gps(GpsReset),
+    /// The horizon EKF's heading was set from the yaw estimator
+    /// ([`Health::yaw_gsf`]): the alignment without a magnetometer, or a
+    /// sustained disagreement with it.
+    YawGsf,
 }
 
 /// The last reset.
@@ -131,6 +135,9 @@ pub struct Health<T: Scalar> {
     /// The horizon filter's magnetometer fusion mode (3-axis, heading only,
     /// none) and the time spent in each.
     pub mag: MagModeHealth,
+    /// The yaw estimator without a magnetometer: its yaw, weights and the
+    /// headings set from it.
+    pub yaw_gsf: super::YawGsfHealth<T>,
 }
 
 impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
@@ -170,6 +177,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 status: estimated.then(|| self.delay_loop.status()),
             },
             mag: self.ekf.mag_modes(),
+            yaw_gsf: self.yaw_gsf.health(self.gsf_yaw_resets),
         }
     }
 
@@ -210,6 +218,7 @@ impl core::fmt::Display for ResetCause {
                 },
                 r.t_us
             ),
+            Self::YawGsf => f.write_str("heading from the yaw estimator"),
         }
     }
 }

@@ -84,10 +84,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             // A gap is one step of its own (the EKF grows P over it).
             let flushed = self.flush_deltas();
             self.fuse_due_mags();
+            let before = self.horizon_heading();
             match self.ekf.push_imu(&sample) {
                 Ok(()) => self.horizon_steps += 1,
                 Err(_) => bump(&mut self.refusals.horizon_refused),
             }
+            self.predict_yaw_gsf(before);
             self.deltas.restart(&sample);
             return flushed || self.ekf.time_us() == Some(t_h);
         }
@@ -105,10 +107,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         };
         // Samples due at the EKF's present time are fused before it moves.
         self.fuse_due_mags();
+        let heading = self.horizon_heading();
         match self.ekf.push_imu_deltas(&deltas) {
             Ok(()) => self.horizon_steps += 1,
             Err(_) => bump(&mut self.refusals.horizon_refused),
         }
+        self.predict_yaw_gsf(heading);
         self.ekf.time_us() != before
     }
 

@@ -219,6 +219,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             self.refine_alignment(fix.velocity_ned_m_s.norm());
         }
         if matches!(outcome, GpsOutcome::Initialized | GpsOutcome::Fused { .. }) {
+            self.fuse_yaw_gsf(&fix.velocity_ned_m_s, fix.speed_accuracy_m_s);
+        }
+        if matches!(outcome, GpsOutcome::Initialized | GpsOutcome::Fused { .. }) {
             self.correct_present();
         }
         Ok(outcome)

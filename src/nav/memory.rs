@@ -41,6 +41,11 @@ fn size_of_every_member_at_half_a_second() {
             600,
         ),
         ("deltas", size_of_val(&nav.deltas), 200),
+        (
+            "yaw_gsf (the yaw estimator and its step)",
+            size_of_val(&nav.yaw_gsf) + size_of_val(&nav.gsf_step),
+            224,
+        ),
     ];
     let total = size_of_val(&*nav);
     let listed: usize = members.iter().map(|m| m.1).sum();
@@ -54,6 +59,8 @@ fn size_of_every_member_at_half_a_second() {
     println!("other members: {} B", total - listed);
     println!("DelayCompensatedNav<f32, {HIST}>: {total} B");
     assert!(total - listed <= 600);
-    // +64 B for the magnetometer modes and options (the EKF +48, the configuration +16).
-    assert!(total <= 24_480, "{total} B");
+    // +64 B for the magnetometer modes and options (the EKF +48, the configuration +16), +224 B
+    // for the yaw estimator (232 B on the Cortex-M4, where `benches/cortex-m4` holds the limit of
+    // 24,576 B): 24,400 before both.
+    assert!(total <= 24_700, "{total} B");
 }

@@ -158,6 +158,7 @@ mod mag_queue;
 mod refusals;
 mod timeline;
 mod whitening;
+pub mod yaw_gsf;
 
 #[cfg(test)]
 mod memory;
@@ -168,6 +169,7 @@ pub use health::{
     MAX_VELOCITY_STD_M_S, ResetCause, ResetRecord,
 };
 pub use refusals::{NavRefusals, NavWork};
+pub use yaw_gsf::{YAW_GSF_MODELS, YawGsf, YawGsfHealth};
 
 use crate::delay::packed::{HeaderCache, PackedRing};
 use crate::delay::ring::Ring;
@@ -222,6 +224,17 @@ pub const MOVING_TILT_STD_RAD: f64 = 0.35;
 
 /// Relative margin on the IMU rate when checking the history size.
 const RATE_MARGIN: f64 = 1.02;
+
+/// Consecutive fused fixes at which the converged yaw estimator and the
+/// horizon filter must disagree (by more than [`GSF_DISAGREEMENT_RAD`] and
+/// three standard deviations of their difference) before the horizon
+/// filter's heading is reset to the estimator's (1 s at 10 Hz).
+pub const GSF_DISAGREEMENT_FIXES: u8 = 10;
+/// Longest step of the yaw estimator's prediction, µs (20 Hz): the horizon
+/// filter's steps are added up until then (and until a fix is fused).
+pub const GSF_PREDICT_PERIOD_US: u64 = 50_000;
+/// Least heading disagreement that counts towards a reset, rad (15 deg).
+pub const GSF_DISAGREEMENT_RAD: f64 = 0.2618;
 
 /// The smallest history `HIST` (IMU samples) that
 /// [`DelayCompensatedNav::configure`] accepts for delays up to
@@ -358,6 +371,17 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// them ([`gps_timing_noise`](Self::gps_timing_noise)).
     last_fix_velocity: Option<(u64, Vector3<T>)>,
     present_accel: Vector3<T>,
+    /// The yaw estimator run from the horizon filter's predictions and the
+    /// fused fixes (`yaw_gsf.rs`, `alignment.rs`).
+    yaw_gsf: YawGsf<T>,
+    /// The horizon filter's predictions since the yaw estimator's last:
+    /// heading-frame delta velocity (m/s), yaw change (rad), time (µs).
+    gsf_step: ([T; 2], T, u32),
+    /// Headings set from the yaw estimator (saturates).
+    gsf_yaw_resets: u16,
+    /// Consecutive fixes at which the converged estimator and the horizon
+    /// filter disagreed ([`GSF_DISAGREEMENT_FIXES`]).
+    gsf_disagreements: u8,
     refusals: NavRefusals,
     imu_samples: u64,
     horizon_steps: u64,
@@ -444,6 +468,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         pending_delay_fix: None,
         last_fix_velocity: None,
         present_accel: zeros_const(),
+        yaw_gsf: YawGsf::BLANK,
+        gsf_step: ([T::ZERO; 2], T::ZERO, 0),
+        gsf_yaw_resets: 0,
+        gsf_disagreements: 0,
         refusals: NavRefusals::ZERO,
         imu_samples: 0,
         horizon_steps: 0,
@@ -537,6 +565,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.pending_delay_fix = None;
         self.last_fix_velocity = None;
         self.present_accel = Vector3::zeros();
+        self.yaw_gsf = YawGsf::BLANK;
+        self.gsf_step = ([T::zero(); 2], T::zero(), 0);
+        self.gsf_yaw_resets = 0;
+        self.gsf_disagreements = 0;
         self.refusals = NavRefusals::default();
         self.imu_samples = 0;
         self.horizon_steps = 0;

@@ -262,6 +262,9 @@ pub struct ReaderOptions {
     pub imu_instance: u8,
     /// ArduPilot: which reference file.
     pub ardupilot_reference: ArduPilotReference,
+    /// Drop every magnetometer record: the log replayed as if it had no
+    /// magnetometer (heading from the GPS velocity and the IMU alone).
+    pub drop_mag: bool,
 }
 
 impl ReaderOptions {
@@ -500,7 +503,9 @@ impl<T: Scalar> LogReader<T> {
             input(streams.imu, 0),
             input(streams.gps, options.gps_delay_added_us),
         ];
-        inputs.extend(streams.mag.map(|m| input(m, 0)));
+        if !options.drop_mag {
+            inputs.extend(streams.mag.map(|m| input(m, 0)));
+        }
         let mut reader = Self {
             inputs,
             skips,

@@ -14,7 +14,8 @@
 //! simulator's clock before any clock fault).
 //!
 //! # The suite
-//! [`fault_suite`] lists the thirteen rows of issue 10: a scenario
+//! [`fault_suite`] lists the thirteen rows of issue 10 and the three of
+//! issue 25 (no magnetometer, an in-flight start): a scenario
 //! ([`FaultCase`]: simulated run, faults, the navigator's duty when told the
 //! clock went back), the quantity measured ([`Metric`]), its limit, and the
 //! run it is compared with ([`Reference`]). [`run_trace`] feeds a run to any
@@ -492,6 +493,11 @@ pub enum Metric {
         /// Time, s.
         t_s: f64,
     },
+    /// Heading error at the first sample at or after `t_s`, degrees.
+    HeadingAt {
+        /// Time, s.
+        t_s: f64,
+    },
 }
 
 /// One row of the suite.
@@ -620,7 +626,7 @@ pub fn hard_iron_offset() -> Vector3<f64> {
     Vector3::new(1.0, 1.0, 0.0).normalize() * HARD_IRON_FRACTION
 }
 
-/// Issue 10's thirteen rows, with times scaled by `scale` (1: the 60 s runs
+/// Issue 10's thirteen rows and issue 25's four, with times scaled by `scale` (1: the 60 s runs
 /// of the issue; tests run shorter). See `docs/faults.md`.
 pub fn fault_suite(seed: u64, scale: f64) -> Vec<FaultCase> {
     let base = base_config(seed, scale);
@@ -807,8 +813,66 @@ pub fn fault_suite(seed: u64, scale: f64) -> Vec<FaultCase> {
             Reference::None,
         )
     });
+    // Without a magnetometer the heading comes from the GPS velocity and the
+    // IMU alone (the yaw estimator of `src/nav/yaw_gsf.rs`).
+    let mut no_mag = base.clone();
+    no_mag.sensors.mag_rate_hz = 0.0;
+    let no_mag_end = (60.0 * scale).max(INFLIGHT_NO_MAG_START_S + 20.0);
+    rows.push(FaultCase {
+        sim: no_mag.clone(),
+        ..case(
+            "no_magnetometer",
+            "yaw error at 30 s, deg",
+            5.0,
+            Vec::new(),
+            Metric::HeadingAt { t_s: s(30.0) },
+            Reference::None,
+        )
+    });
+    rows.push(FaultCase {
+        sim: SimConfig {
+            duration_s: no_mag_end,
+            ..no_mag
+        },
+        ..case(
+            "no_magnetometer_inflight",
+            "yaw error at 35 s (in-flight start at 20 s), deg",
+            5.0,
+            vec![Fault::StartAt {
+                t_s: INFLIGHT_NO_MAG_START_S,
+            }],
+            Metric::HeadingAt {
+                t_s: INFLIGHT_NO_MAG_START_S + 15.0,
+            },
+            Reference::None,
+        )
+    });
+    rows.push(FaultCase {
+        sim: SimConfig {
+            duration_s: no_mag_end,
+            ..base.clone()
+        },
+        ..case(
+            "inflight_tilt_5s",
+            "tilt error at 25 s (in-flight start at 20 s), deg",
+            2.5,
+            vec![Fault::StartAt {
+                t_s: INFLIGHT_NO_MAG_START_S,
+            }],
+            Metric::TiltAt {
+                t_s: INFLIGHT_NO_MAG_START_S + 5.0,
+            },
+            Reference::None,
+        )
+    });
     rows
 }
+
+/// When the navigator is switched on in the in-flight rows of the `high`
+/// scenario (`no_magnetometer_inflight`, `inflight_tilt_5s`), s: the
+/// vehicle is manoeuvring then. Not scaled: the rows' runs last at least
+/// 20 s past it.
+pub const INFLIGHT_NO_MAG_START_S: f64 = 20.0;
 
 fn rms(xs: impl Iterator<Item = f64>) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
@@ -890,6 +954,7 @@ pub fn evaluate(
             max_of(from(from_s).map(|p| p.heading_deg))
         }
         Metric::TiltAt { t_s } => at(t_s).map_or(f64::NAN, |p| p.tilt_deg),
+        Metric::HeadingAt { t_s } => at(t_s).map_or(f64::NAN, |p| p.heading_deg),
     };
     let tilt_ok = match (case.metric, note) {
         (Metric::MaxHeading { max_tilt_deg, .. }, Some((_, tilt))) => tilt <= max_tilt_deg,

@@ -543,7 +543,12 @@ impl Iterator for Simulation {
         let sensors = &self.config.sensors;
         let end = self.duration_us;
         let imu_t = self.imu_time_us(self.next_imu);
-        let mag_t = sample_time_us(self.next_mag, sensors.mag_rate_hz);
+        // A rate of 0: no magnetometer (never the earliest).
+        let mag_t = if sensors.mag_rate_hz > 0.0 {
+            sample_time_us(self.next_mag, sensors.mag_rate_hz)
+        } else {
+            u64::MAX
+        };
         let gps_t = sample_time_us(self.next_gps, sensors.gps_rate_hz);
         // Ties: IMU, then magnetometer, then GPS.
         let earliest = [imu_t, mag_t, gps_t]

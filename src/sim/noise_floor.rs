@@ -121,8 +121,12 @@ fn axis_covariance(sensors: &SensorConfig, f: f64, with_tilt: bool) -> Matrix3<f
     previous
 }
 
-/// Cycle-averaged steady-state heading variance from the magnetometer alone.
+/// Cycle-averaged steady-state heading variance from the magnetometer alone
+/// (infinite without a magnetometer).
 fn heading_variance(sensors: &SensorConfig) -> f64 {
+    if sensors.mag_rate_hz <= 0.0 {
+        return f64::INFINITY;
+    }
     let dt = 1.0 / sensors.imu_rate_hz;
     let steps = (sensors.imu_rate_hz / sensors.mag_rate_hz).round().max(1.0) as usize;
     let q = sensors.gyro_noise_var_rad2_s2 * dt * dt;

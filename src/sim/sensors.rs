@@ -69,7 +69,8 @@ pub struct SensorConfig {
     pub imu_rate_hz: f64,
     /// GPS rate, Hz (1-20).
     pub gps_rate_hz: f64,
-    /// Magnetometer rate, Hz (at most the IMU rate).
+    /// Magnetometer rate, Hz (at most the IMU rate; 0: no magnetometer at
+    /// all, the run carries no magnetometer sample).
     pub mag_rate_hz: f64,
     /// Gyro white-noise variance per sample, (rad/s)^2. Table 3: 0.0017.
     pub gyro_noise_var_rad2_s2: f64,
@@ -206,11 +207,13 @@ impl SensorConfig {
                 bound: crate::error::Bound::Rule("must be in 1-20 Hz"),
             });
         }
-        if !(self.mag_rate_hz > 0.0 && self.mag_rate_hz <= self.imu_rate_hz) {
+        if !(self.mag_rate_hz >= 0.0 && self.mag_rate_hz <= self.imu_rate_hz) {
             return Err(InvalidConfig {
                 field: "mag_rate_hz".into(),
                 value: None,
-                bound: crate::error::Bound::Rule("must be positive and at most the IMU rate"),
+                bound: crate::error::Bound::Rule(
+                    "must be 0 (no magnetometer) or positive and at most the IMU rate",
+                ),
             });
         }
         let non_negative = [

@@ -360,6 +360,7 @@ pub(super) fn derive(options: &ReplayOptions) -> Result<ReplaySetup, ReplayError
             _ => ArduPilotImu::Second,
         },
         imu_instance,
+        drop_mag: options.no_mag,
         ..ReaderOptions::default()
     }
     .with_added_gps_delay(options.add_gps_delay_s, options.add_delay_from_s)?;

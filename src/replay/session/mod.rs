@@ -151,6 +151,10 @@ pub struct ReplayOptions {
     /// Navigator configuration (TOML, may be partial) merged over the one
     /// derived from the log ([`ReplaySetup::with_config_file`]).
     pub config_file: Option<PathBuf>,
+    /// Drop the log's magnetometer records
+    /// ([`ReaderOptions::drop_mag`](super::ReaderOptions::drop_mag)): yaw
+    /// without a compass, on any log.
+    pub no_mag: bool,
 }
 
 /// Seconds replayed before the scored window by default.
