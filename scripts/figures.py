@@ -396,6 +396,17 @@ def faults():
             *table(["name", "fault", "measured", "value", "limit", ""], rows)]
 
 
+def integrity():
+    doc = load("integrity.json")
+    rows = []
+    for r in doc["integrity"]:
+        limit = f">= {r['limit']:g}" if r["name"] == "availability_clean" else f"{r['limit']:g}"
+        rows.append([r["name"], fixed(r["measured"], 4, "none"), limit,
+                     "pass" if r["passed"] else "**FAIL**"])
+    return [*sh(f"{REPRO} --integrity --json docs/results/integrity.json"), "",
+            *table(["row", "measured", "limit", ""], rows)]
+
+
 # What each row of the delay suite tests (descriptions), the digits of its figure, and what
 # follows its bound. A row with a bound is judged on its ratio to the bound (its limit).
 DELAY_SUITE = {
@@ -786,6 +797,7 @@ RENDERERS = {
     "sweep-imu_rate": lambda: sweep("imu_rate"),
     "sweep-delay": lambda: sweep("delay"),
     "faults": faults,
+    "integrity": integrity,
     "delay-suite": delay_suite,
     "cortex-m4": cortex_m4,
     "readme-cortex-m4": readme_cortex_m4,

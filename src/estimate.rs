@@ -103,4 +103,10 @@ pub trait Navigator<T: Scalar> {
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error>;
     /// The current solution, `None` until initialized.
     fn estimate(&self) -> Option<Estimate<T>>;
+    /// What the estimator vouches for now: its protection levels and the validity of each
+    /// quantity ([`Integrity`](crate::integrity::Integrity)). The default vouches for
+    /// nothing (infinite levels, nothing valid).
+    fn integrity(&self) -> crate::integrity::Integrity<T> {
+        crate::integrity::Integrity::none()
+    }
 }

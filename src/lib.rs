@@ -83,6 +83,7 @@ pub mod ekf16;
 pub mod error;
 pub mod estimate;
 pub mod geo;
+pub mod integrity;
 #[doc(hidden)]
 pub mod kalman;
 pub mod nav;

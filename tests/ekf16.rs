@@ -747,8 +747,10 @@ macro_rules! ekf16_tests {
                 assert_eq!(ekf.time_us(), Some(t + 10_000));
             }
 
+            /// A gap moves the clock, carries the position by the velocity (nothing else of
+            /// the state moves) and grows `P`: the process noise and the unknown motion.
             #[test]
-            fn a_long_gap_moves_the_clock_and_grows_p_only() {
+            fn a_long_gap_moves_the_clock_carries_the_position_and_grows_p() {
                 let mut ekf = running_filter();
                 let t = ekf.time_us().unwrap();
                 let (x, p, _) = snapshot(&ekf);
@@ -765,9 +767,24 @@ macro_rules! ekf16_tests {
                         max_us: ekf.config().max_imu_step_us
                     })
                 );
-                assert_eq!(ekf.state_vector(), &x);
+                let mut carried = x;
+                let dt = lit(gap as f64 * 1e-6);
+                for i in 0..3 {
+                    carried[POS + i] += x[VEL + i] * dt;
+                }
+                assert_eq!(ekf.state_vector(), &carried);
                 assert_eq!(ekf.time_us(), Some(t + gap));
-                let grown = ekf.covariance() - p;
+                // P grows beyond its carry F P F^T (F = I + dt E_pv).
+                let mut f = SMatrix::<T, NAV_STATES, NAV_STATES>::identity();
+                for i in 0..3 {
+                    f[(POS + i, VEL + i)] = dt;
+                }
+                let grown = ekf.covariance() - f * p * f.transpose();
+                // The unknown motion: at least (5 m/s^2 dt)^2 on each velocity variance.
+                for i in 0..3 {
+                    let v = grown[(VEL + i, VEL + i)];
+                    assert!(v >= lit(25.0) * dt * dt * lit(0.99), "velocity {i}: {v:?}");
+                }
                 assert!(
                     min_relative_eigenvalue(&grown) > -1e3 * $round,
                     "P shrank over a gap"

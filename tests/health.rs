@@ -81,7 +81,9 @@ macro_rules! health_tests {
 
             /// BLANK, then every start-up state in order, each seen (none
             /// skipped or merged), with the flags and the estimate that go
-            /// with it: nothing valid before `Aligned`, tilt at `Aligned`.
+            /// with it: nothing valid before `Aligned`; tilt once aligned and its
+            /// protection level within the alert limit (not at once: the levelling
+            /// leaves the tilt uncertain to 0.1 rad).
             #[test]
             fn alignment_goes_through_every_state_in_order() {
                 let mut nav = DelayCompensatedNav::<T>::BLANK;
@@ -91,13 +93,15 @@ macro_rules! health_tests {
                 nav.configure(config(DelayMode::Fixed { delay_s: TAU as T }))
                     .unwrap();
                 let mut seen = vec![nav.alignment()];
-                for e in fly(&lively(1), &Suite::simulator(), 5.0, |_| TAU, None) {
+                for e in fly(&lively(1), &Suite::simulator(), 20.0, |_| TAU, None) {
                     feed(&mut nav, &e);
                     let h = nav.health();
                     assert_eq!(h.alignment, nav.alignment());
                     let aligned = h.alignment == AlignmentState::Aligned;
                     assert_eq!(nav.estimate().is_some(), aligned, "{h:?}");
-                    assert_eq!(h.tilt_valid, aligned, "{h:?}");
+                    let limit = nav.config().ekf.integrity.tilt_alert_limit_deg;
+                    let within = h.protection_levels.tilt_deg <= limit;
+                    assert_eq!(h.tilt_valid, aligned && within, "{h:?}");
                     if !aligned {
                         assert!(
                             !(h.heading_valid || h.velocity_valid || h.position_valid),
@@ -264,9 +268,17 @@ macro_rules! health_tests {
                 );
                 let rose = first(&trace, 0.0, |h| h.delay_valid, true).expect("delay valid");
                 let (_, at) = trace.iter().find(|(t, _)| *t == rose).unwrap();
-                assert_eq!(
-                    at.delay.valid_updates, 1,
-                    "valid with its first measured update: {at:?}"
+                // Valid once measured and its protection level within the alert limit.
+                assert!(at.delay.valid_updates >= 1, "{at:?}");
+                let limit = nav_config::<T>(DelayMode::Fixed { delay_s: 0.0 }, 1000.0)
+                    .ekf
+                    .integrity
+                    .delay_alert_limit_s;
+                assert!(at.protection_levels.delay_s <= limit, "{at:?}");
+                let (_, before) = trace.iter().rev().find(|(t, _)| *t < rose).unwrap();
+                assert!(
+                    before.delay.valid_updates == 0 || before.protection_levels.delay_s > limit,
+                    "{before:?}"
                 );
                 holds(&trace, (rose, 40.0), "delay_valid", |h| h.delay_valid, true);
                 let h = trace.last().unwrap().1;
@@ -292,6 +304,9 @@ macro_rules! health_tests {
                 let locked = |h: &Health<T>| h.delay.status == Some(DelayStatus::Locked);
                 let at = first(&trace, 0.0, locked, true).expect("locked before the step");
                 assert!(at < step_s, "locked at {at} s");
+                // Valid once its protection level is within the alert limit, until the step.
+                let at = first(&trace, at, |h| h.delay_valid, true).expect("valid");
+                assert!(at < step_s - 5.0, "valid at {at} s");
                 holds(&trace, (at, step_s), "delay_valid", |h| h.delay_valid, true);
                 let below =
                     |h: &Health<T>| matches!(h.delay.status, Some(DelayStatus::BelowRange { .. }));

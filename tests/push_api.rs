@@ -355,6 +355,7 @@ fn ekf_sum(c: &FilterRefusals) -> u64 {
             imu_out_of_range,
             imu_time,
             imu_step_too_long,
+            imu_ahead,
             gps_invalid,
             gps_time,
             gps_position_rejected,

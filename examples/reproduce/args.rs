@@ -86,6 +86,11 @@ pub struct Args {
     /// Run the fault suite of issue 10 instead (`--duration` scales its 60 s runs).
     #[arg(long)]
     pub faults: bool,
+    /// Run the integrity suite instead (`delaynav::sim::suite::integrity`): protection levels
+    /// against the errors under faults and on clean runs (`--seeds`, default 3, from
+    /// `--seed`; `--duration` scales its 60 s runs); writes `integrity` to the JSON file.
+    #[arg(long)]
+    pub integrity: bool,
     /// Run the delay suite of issue 11 instead (`delaynav::sim::suite::delay`); writes
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]
@@ -101,7 +106,7 @@ pub struct Args {
     /// every IMU sample [default: `DelayCompensatedNavConfig`'s].
     #[arg(long)]
     pub filter_rate_hz: Option<f64>,
-    /// With the default run, --faults or --delay-suite: print every verdict
+    /// With the default run, --faults, --integrity or --delay-suite: print every verdict
     /// and exit non-zero when one fails or a figure is NaN (`delaynav::sim::suite::check`).
     #[arg(long)]
     pub check: bool,

@@ -14,6 +14,7 @@
 //! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # delay suite
+//! cargo run --release --features sim --example reproduce -- --integrity --json target/integrity.json
 //! cargo run --release --features sim --example reproduce -- --delay-suite --rows delay_ramp,gps_2hz \
 //!     --delay-rate-std 1 --delay-rate-time-constant 30 --json d.json      # rows with the drift-rate state
 //! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_low --seed 1 \
@@ -38,6 +39,7 @@ use args::{Args, ScenarioChoice};
 use clap::Parser;
 use delaynav::sim::suite::check::{Verdict, judge};
 use delaynav::sim::suite::faults::{self, FaultsOptions};
+use delaynav::sim::suite::integrity::{self, IntegrityOptions};
 use delaynav::sim::suite::sweep::{self, SweepOptions};
 use delaynav::sim::suite::tables::{self, Estimator, TablesOptions, score};
 use delaynav::sim::suite::{Progress, ProgressFn};
@@ -124,7 +126,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     if args.check
         && (args.sweep.is_some() || args.bound_study || args.delay_flags.trace_row().is_some())
     {
-        return Err("--check applies to the default run, --faults and --delay-suite".into());
+        return Err(
+            "--check applies to the default run, --faults, --integrity and --delay-suite".into(),
+        );
     }
     let reporter = Reporter::new();
     let progress = |p: Progress| reporter.report(p);
@@ -138,6 +142,25 @@ fn main() -> Result<(), Box<dyn Error>> {
         };
         let result = faults::run(&options, &progress)?;
         eprint!("{result}");
+        write_json(&args.json, &result.to_json())?;
+        if args.check {
+            enforce(&result.verdicts(), &args.known_failures)?;
+        }
+        return Ok(());
+    }
+    if args.integrity {
+        let seeds = args.seeds.unwrap_or(3);
+        let mut options = IntegrityOptions {
+            seeds: (args.seed..args.seed + seeds).collect(),
+            scale: args.duration.unwrap_or(60.0) / 60.0,
+            ..IntegrityOptions::default()
+        };
+        if let Some(threads) = args.threads {
+            options.threads = threads;
+        }
+        let result = integrity::run(&options, &progress)?;
+        eprint!("{result}");
+        eprintln!("integrity: {:.1} s wall", result.wall_s);
         write_json(&args.json, &result.to_json())?;
         if args.check {
             enforce(&result.verdicts(), &args.known_failures)?;

@@ -524,4 +524,9 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
             ..e
         })
     }
+
+    /// The protection levels of the covariance, the delay's from its state.
+    fn integrity(&self) -> crate::integrity::Integrity<T> {
+        self.core.integrity(Some(self.delay_std_s()))
+    }
 }

@@ -19,6 +19,7 @@
 //! velocity 0.1 (m/s)², magnetometer 0.02 (unit field).
 
 use crate::error::{Bound, Error, check};
+use crate::integrity::IntegrityConfig;
 use crate::kalman::GATE_5_SIGMA_3DOF;
 use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::Geodetic;
@@ -181,7 +182,8 @@ pub struct Ekf16Config<T: Scalar> {
     pub gps_nis_bound: T,
 
     /// Longest IMU step integrated, microseconds; longer gaps are refused
-    /// with [`Error::StepTooLong`] (covariance grows, state not propagated).
+    /// with [`Error::StepTooLong`] (the position carried by the velocity, the covariance grown for the
+    /// unknown motion: `docs/integrity.md`).
     pub max_imu_step_us: u64,
     /// Largest plausible rate magnitude per axis, rad/s; larger samples are refused.
     pub max_gyro_rad_s: T,
@@ -215,6 +217,9 @@ pub struct Ekf16Config<T: Scalar> {
     /// Initial gyro-bias standard deviation per axis, rad/s: the uncertainty
     /// of [`initial_gyro_bias_rad_s`](Self::initial_gyro_bias_rad_s).
     pub initial_gyro_bias_std_rad_s: T,
+    /// The integrity risk and the alert limits of the protection levels
+    /// ([`crate::integrity`]).
+    pub integrity: IntegrityConfig<T>,
 }
 
 impl<T: Scalar> Ekf16Config<T> {
@@ -262,6 +267,7 @@ impl<T: Scalar> Ekf16Config<T> {
         initial_accel_bias_std_m_s2: T::ZERO,
         initial_gyro_bias_rad_s: zeros_const(),
         initial_gyro_bias_std_rad_s: T::ZERO,
+        integrity: IntegrityConfig::ZEROED,
     };
 }
 
@@ -312,6 +318,7 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             initial_accel_bias_std_m_s2: T::lit(0.1 * g),
             initial_gyro_bias_rad_s: Vector3::zeros(),
             initial_gyro_bias_std_rad_s: T::lit(0.01),
+            integrity: IntegrityConfig::default(),
         }
     }
 }
@@ -477,6 +484,6 @@ impl<T: Scalar> Ekf16Config<T> {
             check::within("origin.lon_deg", o.lon_deg, -360.0, 360.0)?;
             check::finite("origin.alt_m", o.alt_m)?;
         }
-        Ok(())
+        self.integrity.validate()
     }
 }

@@ -77,9 +77,11 @@
 //! samples going back in time ([`Error::TimeWentBackwards`]) are refused
 //! and leave the filter unchanged; [`Ekf16::refusals`] counts them. An IMU
 //! gap longer than `max_imu_step_us` returns [`Error::StepTooLong`]: the
-//! state is not propagated, the clock moves to the sample and `P` grows by
-//! `Q` of the gap, or of [`MAX_GAP_NOISE_US`] when the gap is longer (the
-//! state is then unknown anyway; the GPS block resets bring it back).
+//! clock moves to the sample, the position is carried by the velocity over
+//! the gap, and `P` grows by `Q` of the gap and by the motion nobody measured
+//! (an unknown acceleration and rotation rate, `docs/integrity.md`), over at
+//! most [`MAX_GAP_NOISE_US`] (the state is then unknown anyway; the GPS block
+//! resets bring it back).
 
 mod config;
 #[doc(hidden)]
@@ -108,7 +110,7 @@ use nalgebra::Vector3;
 use nav_core::NavCore;
 pub use nav_core::{
     GpsBlock, MAG_GAP_US, MAG_THREE_AXIS_HOLD_US, MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD,
-    MAX_GAP_NOISE_US,
+    MAX_GAP_NOISE_US, MAX_TIME_JUMP_US,
 };
 use state::{NAV_STATES, StateCovariance, StateVector};
 
@@ -172,6 +174,9 @@ pub struct FilterRefusals {
     pub imu_time: u32,
     /// IMU steps longer than `max_imu_step_us` (not integrated).
     pub imu_step_too_long: u32,
+    /// IMU samples more than [`MAX_TIME_JUMP_US`] after the previous one, refused until
+    /// the next sample confirms the jump (a sample stamped in the future).
+    pub imu_ahead: u32,
     /// GPS fixes with a non-finite or invalid value.
     pub gps_invalid: u32,
     /// GPS fixes duplicated or going back in time.
@@ -213,6 +218,7 @@ impl FilterRefusals {
         imu_out_of_range: 0,
         imu_time: 0,
         imu_step_too_long: 0,
+        imu_ahead: 0,
         gps_invalid: 0,
         gps_time: 0,
         gps_position_rejected: 0,
@@ -238,6 +244,7 @@ impl FilterRefusals {
             imu_step_too_long: self
                 .imu_step_too_long
                 .saturating_add(other.imu_step_too_long),
+            imu_ahead: self.imu_ahead.saturating_add(other.imu_ahead),
             gps_invalid: self.gps_invalid.saturating_add(other.gps_invalid),
             gps_time: self.gps_time.saturating_add(other.gps_time),
             gps_position_rejected: self
@@ -494,6 +501,12 @@ impl<T: Scalar> Ekf16<T> {
     }
 
     crate::ekf16::nav_core::core_accessors!();
+
+    /// The integrity monitor's inflation factors `(position, velocity)`, at least 1
+    /// (`src/ekf16/nav_core/integrity.rs`).
+    pub(crate) fn nis_inflation(&self) -> (T, T) {
+        self.core.nis_inflation()
+    }
 }
 
 impl<T: Scalar> Navigator<T> for Ekf16<T> {
@@ -513,6 +526,11 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
 
     fn estimate(&self) -> Option<Estimate<T>> {
         self.core.estimate()
+    }
+
+    /// The protection levels of the covariance; no delay estimate (an infinite delay level).
+    fn integrity(&self) -> crate::integrity::Integrity<T> {
+        self.core.integrity(None)
     }
 }
 

@@ -27,6 +27,7 @@ use crate::delay::DelayStatus;
 use crate::ekf16::state::{POS, VEL};
 use crate::ekf16::{GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
+use crate::integrity::{Integrity, ProtectionLevels, protection_factors};
 use crate::scalar::Scalar;
 
 /// Longest time since the last fused GPS fix for velocity and position to
@@ -124,8 +125,13 @@ pub struct Health<T: Scalar> {
     pub velocity_valid: bool,
     /// Position can be trusted.
     pub position_valid: bool,
+    /// Vertical position can be trusted.
+    pub vertical_valid: bool,
     /// The delay can be trusted.
     pub delay_valid: bool,
+    /// The protection levels of the present estimate at the configured integrity risk
+    /// ([`crate::integrity`]): each `*_valid` needs its level within its alert limit.
+    pub protection_levels: ProtectionLevels<T>,
     /// The last reset, if any.
     pub last_reset: Option<ResetRecord>,
     /// Refusals, gates and resets, the horizon filter's among them.
@@ -157,15 +163,26 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let gps_recent = recent(self.ekf.last_gps_fused_us(), GPS_STALE_US);
         let mag_fused = self.ekf.last_mag_fused_us();
         let estimated = self.is_estimating();
+        let levels = self.protection_levels();
+        let limits = &self.config.ekf.integrity;
+        let judged = Integrity::judged(levels, limits, aligned);
         Health {
             t_us: self.imu_clock.last(),
             alignment,
-            tilt_valid: aligned,
-            heading_valid: aligned && recent(mag_fused, HEADING_STALE_US),
-            velocity_valid: aligned && gps_recent && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
-            position_valid: aligned && gps_recent && horizontal_std <= T::lit(MAX_POSITION_STD_M),
-            delay_valid: !estimated
-                || (self.valid_delay_updates > 0 && !self.delay_loop.status().is_out_of_range()),
+            tilt_valid: judged.tilt_valid,
+            heading_valid: judged.heading_valid && recent(mag_fused, HEADING_STALE_US),
+            velocity_valid: judged.velocity_valid
+                && gps_recent
+                && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
+            position_valid: judged.horizontal_valid
+                && gps_recent
+                && horizontal_std <= T::lit(MAX_POSITION_STD_M),
+            vertical_valid: judged.vertical_valid && gps_recent,
+            delay_valid: levels.delay_s <= limits.delay_alert_limit_s
+                && (!estimated
+                    || (self.valid_delay_updates > 0
+                        && !self.delay_loop.status().is_out_of_range())),
+            protection_levels: levels,
             last_reset: self.last_reset.get(),
             refusals: self.refusals(),
             delay: DelayHealth {
@@ -181,9 +198,61 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
     }
 
+    /// The protection levels of the present estimate: the horizon filter's covariance, plus
+    /// what the delay's uncertainty `s_tau` adds when the horizon is carried to the present
+    /// (a delay error `d` shifts the present by `v d` in position and `a d` in velocity:
+    /// `v v^T s_tau^2` and `a a^T s_tau^2` added to the NED blocks); the delay's own level
+    /// from `s_tau` (0 in fixed mode: the given delay is taken as exact); inflated by the
+    /// horizon filter's innovation monitor (`src/ekf16/nav_core/integrity.rs`). The others are
+    /// unbounded before the horizon filter is initialized.
+    pub fn protection_levels(&self) -> ProtectionLevels<T> {
+        let s = self.delay_std_s();
+        let Some(horizon) = self.ekf.estimate() else {
+            let (k1, _, _) = protection_factors(self.config.ekf.integrity.risk);
+            return ProtectionLevels {
+                delay_s: k1 * s,
+                ..ProtectionLevels::unbounded()
+            };
+        };
+        let present = self.estimate().unwrap_or(horizon);
+        let v = present.velocity_ned_m_s * s;
+        let a = self.present_accel * s;
+        let (position, velocity) = self.ekf.nis_inflation();
+        ProtectionLevels::from_covariance(
+            &present.attitude,
+            self.ekf.covariance(),
+            self.config.ekf.integrity.risk,
+            &(v * v.transpose()),
+            &(a * a.transpose()),
+            Some(s),
+        )
+        .inflated(position, velocity)
+    }
+
     /// The present estimate with its [`Health`] (`None` until aligned).
     pub fn estimate_with_health(&self) -> Option<(Estimate<T>, Health<T>)> {
         Some((self.estimate()?, self.health()))
+    }
+}
+
+impl<T: Scalar> Health<T> {
+    /// The flags and levels as the [`Navigator`] trait reports them; `resets` counts the
+    /// horizon filter's GPS block resets and the IMU gaps that restarted the history.
+    pub fn integrity(&self) -> Integrity<T> {
+        let h = &self.refusals.horizon;
+        Integrity {
+            levels: self.protection_levels,
+            tilt_valid: self.tilt_valid,
+            heading_valid: self.heading_valid,
+            horizontal_valid: self.position_valid,
+            vertical_valid: self.vertical_valid,
+            velocity_valid: self.velocity_valid,
+            delay_valid: self.delay_valid,
+            resets: h
+                .gps_position_resets
+                .saturating_add(h.gps_velocity_resets)
+                .saturating_add(self.refusals.imu_gap),
+        }
     }
 }
 

@@ -245,6 +245,11 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         Ok(self.enqueue_mag(m))
     }
 
+    /// The [`Health`](super::Health) as the trait reports it.
+    fn integrity(&self) -> crate::integrity::Integrity<T> {
+        self.health().integrity()
+    }
+
     /// The present solution: attitude, position and velocity at the newest
     /// IMU sample; biases and covariance are the horizon EKF's. `None` until
     /// the first correction has reached the present (module docs).

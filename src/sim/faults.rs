@@ -62,6 +62,17 @@ pub enum Fault {
         /// Position offset, NED, m.
         offset_m: [f64; 3],
     },
+    /// Every fix from `from_s` on is moved by an offset growing linearly from
+    /// zero to `offset_m` (NED) over `duration_s`, then staying there; velocities
+    /// stay good (a slow drift, multipath).
+    GpsPositionDrift {
+        /// Start, s.
+        from_s: f64,
+        /// Time to reach the full offset, s.
+        duration_s: f64,
+        /// Final position offset, NED, m.
+        offset_m: [f64; 3],
+    },
     /// The first fix of the run is `offset_m` (NED) off.
     GpsFirstFixGlitch {
         /// Position offset, NED, m.
@@ -90,6 +101,13 @@ pub enum Fault {
         fraction: f64,
         /// Seed of the choice.
         seed: u64,
+    },
+    /// No IMU sample in `[from_s, to_s)` (GPS and magnetometer go on).
+    ImuGap {
+        /// Start, s.
+        from_s: f64,
+        /// End, s.
+        to_s: f64,
     },
     /// The IMU samples at jittered instants, each period up to `+-fraction`
     /// of the nominal one ([`Simulation::with_imu_period_jitter`]).
@@ -251,6 +269,26 @@ impl FaultySimulation {
                 {
                     fix.position = self.offset(fix.position, offset_m);
                 }
+                (
+                    Fault::GpsPositionDrift {
+                        from_s,
+                        duration_s,
+                        offset_m,
+                    },
+                    SimEvent::Gps { fix, .. },
+                ) if t >= us(from_s) => {
+                    let share = if duration_s > 0.0 {
+                        ((t as f64 * 1e-6 - from_s) / duration_s).min(1.0)
+                    } else {
+                        1.0
+                    };
+                    fix.position = self.offset(fix.position, offset_m.map(|x| x * share));
+                }
+                (Fault::ImuGap { from_s, to_s }, SimEvent::Imu { .. })
+                    if t >= us(from_s) && t < us(to_s) =>
+                {
+                    return None;
+                }
                 (Fault::GpsFirstFixGlitch { offset_m }, SimEvent::Gps { fix, .. })
                     if self.first_fix_us.is_none() =>
                 {
@@ -370,6 +408,33 @@ pub enum OnTimeBackwards {
     Reset,
 }
 
+/// Pushes one event to `nav`, its refusals ignored (the navigator counts them); with
+/// [`OnTimeBackwards::Reset`] a backwards IMU sample calls `reset` and is pushed again.
+pub(crate) fn feed<N: Navigator<f64>>(
+    nav: &mut N,
+    event: &SimEvent,
+    on_backwards: OnTimeBackwards,
+    reset: &mut impl FnMut(&mut N),
+) {
+    match event {
+        SimEvent::Imu { sample, .. } => {
+            let result = nav.push_imu(sample);
+            if on_backwards == OnTimeBackwards::Reset
+                && matches!(result, Err(Error::TimeWentBackwards { .. }))
+            {
+                reset(nav);
+                let _ = nav.push_imu(sample);
+            }
+        }
+        SimEvent::Mag(m) => {
+            let _ = nav.push_mag(m);
+        }
+        SimEvent::Gps { fix, .. } => {
+            let _ = nav.push_gps(fix);
+        }
+    }
+}
+
 /// Feeds `events` to `nav` and records its errors at every IMU sample.
 /// Refusals are the navigator's business (it counts them); with
 /// [`OnTimeBackwards::Reset`] a backwards IMU sample calls `reset`.
@@ -381,23 +446,7 @@ pub fn run_trace<N: Navigator<f64>>(
 ) -> Vec<TracePoint> {
     let mut trace = Vec::new();
     for event in events {
-        match &event {
-            SimEvent::Imu { sample, .. } => {
-                let result = nav.push_imu(sample);
-                if on_backwards == OnTimeBackwards::Reset
-                    && matches!(result, Err(Error::TimeWentBackwards { .. }))
-                {
-                    reset(&mut nav);
-                    let _ = nav.push_imu(sample);
-                }
-            }
-            SimEvent::Mag(m) => {
-                let _ = nav.push_mag(m);
-            }
-            SimEvent::Gps { fix, .. } => {
-                let _ = nav.push_gps(fix);
-            }
-        }
+        feed(&mut nav, &event, on_backwards, &mut reset);
         let SimEvent::Imu { truth, .. } = event else {
             continue;
         };
@@ -541,11 +590,7 @@ pub struct FaultResult {
 
 /// The high scenario, `60 scale` s long, true delay 0.2 s (constant).
 pub fn base_config(seed: u64, scale: f64) -> SimConfig {
-    SimConfig {
-        duration_s: 60.0 * scale,
-        delay: super::DelayProfile::constant(0.2),
-        ..SimConfig::for_scenario(Scenario::High, seed)
-    }
+    base_config_in(Scenario::High, seed, scale)
 }
 
 /// Speed of the in-flight start, m/s.
@@ -629,7 +674,22 @@ pub fn hard_iron_offset() -> Vector3<f64> {
 /// Issue 10's thirteen rows and issue 25's four, with times scaled by `scale` (1: the 60 s runs
 /// of the issue; tests run shorter). See `docs/faults.md`.
 pub fn fault_suite(seed: u64, scale: f64) -> Vec<FaultCase> {
-    let base = base_config(seed, scale);
+    fault_suite_in(Scenario::High, seed, scale)
+}
+
+/// [`base_config`] in `scenario`.
+pub fn base_config_in(scenario: Scenario, seed: u64, scale: f64) -> SimConfig {
+    SimConfig {
+        duration_s: 60.0 * scale,
+        delay: super::DelayProfile::constant(0.2),
+        ..SimConfig::for_scenario(scenario, seed)
+    }
+}
+
+/// [`fault_suite`] on `scenario` instead of the high one (the in-flight start
+/// keeps its own turn).
+pub fn fault_suite_in(scenario: Scenario, seed: u64, scale: f64) -> Vec<FaultCase> {
+    let base = base_config_in(scenario, seed, scale);
     let s = |t: f64| t * scale;
     let skip = s(10.0);
     let case = |name, criterion, limit, faults: Vec<Fault>, metric, reference| FaultCase {

@@ -61,6 +61,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.initialize(&m)?;
         self.gps_accepted_us = [Some(fix.t_us); 2];
         self.gps_nis = [(T::zero(), 0); 2];
+        self.gps_nis_mean = [T::lit(3.0); 2];
         self.gps_clock_us = Some(fix.t_us);
         self.frame = frame;
         Ok(GpsStep::Initialized)
@@ -268,6 +269,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if position.fused || velocity.fused {
             self.gps_fused_us = Some(position.t_us);
         }
+        self.monitor_gps_nis(&position, &velocity);
         self.last_gps = (position, velocity);
         self.gps_recorded = true;
     }

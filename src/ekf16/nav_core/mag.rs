@@ -217,14 +217,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// attitude error `dtheta = 2 vec(dq ⊗ q*)` (NED), from `P`:
     /// `dtheta = G dq`, `G = 2 [-v | w I + [v×]]` for `q = (w, v)`.
     pub(crate) fn tilt_std(&self) -> T {
-        let q = quaternion_of(&self.x);
-        let v = q.imag();
-        let mut g = SMatrix::<T, 3, 4>::zeros();
-        g.set_column(0, &(-v));
-        g.fixed_view_mut::<3, 3>(0, 1)
-            .copy_from(&(Matrix3::identity() * q.w + v.cross_matrix()));
-        g *= T::lit(2.0);
-        let cov = g * self.p.fixed_view::<4, 4>(QUAT, QUAT) * g.transpose();
+        let cov = crate::integrity::attitude_error_covariance(
+            &quaternion_of(&self.x),
+            &self.p.fixed_view::<4, 4>(QUAT, QUAT).into_owned(),
+        );
         cov[(0, 0)].max(cov[(1, 1)]).max(T::zero()).sqrt()
     }
 

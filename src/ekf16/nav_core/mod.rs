@@ -60,6 +60,7 @@
 
 mod alignment;
 mod gps;
+mod integrity;
 mod mag;
 mod predict;
 
@@ -87,9 +88,10 @@ use crate::sensors::{
 use crate::zero_option::ZeroOption;
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
-/// The longest stretch of an IMU gap whose process noise is added to `P`,
-/// µs (a gap longer than `max_imu_step_us` is not integrated; `P` grows by
-/// the noise of `min(gap, MAX_GAP_NOISE_US)`).
+/// The longest stretch of an IMU gap whose process noise and unknown motion
+/// are added to `P`, µs (a gap longer than `max_imu_step_us` is not
+/// integrated: the position is carried by the velocity and `P` grows over
+/// `min(gap, MAX_GAP_NOISE_US)`).
 pub const MAX_GAP_NOISE_US: u64 = 60_000_000;
 
 /// Time of clean magnetometer samples (never two in a row disturbed or
@@ -103,6 +105,12 @@ pub const MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD: f64 = 0.15;
 /// Interval between magnetometer samples beyond which the time counts as
 /// [`MagMode::NoFusion`](super::MagMode::NoFusion), µs.
 pub const MAG_GAP_US: u64 = 1_000_000;
+/// Largest forward jump of the IMU clock accepted at once, µs (the navigator's default
+/// `max_time_jump_us`): a sample further ahead is refused
+/// ([`Error::OutOfRange`] `imu.time`, counted in `FilterRefusals::imu_ahead`) and kept as a
+/// candidate; the next sample within this bound after it confirms the jump (a real gap), one
+/// within this bound after the clock drops it (a sample stamped in the future).
+pub const MAX_TIME_JUMP_US: u64 = 1_000_000;
 
 /// One state appended after the 16 navigation states: a random walk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -353,6 +361,8 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     extra_intensity: SVector<T, N>,
     initialized: bool,
     imu_clock_us: Option<u64>,
+    /// An IMU time refused as too far ahead, waiting for confirmation.
+    imu_candidate_us: Option<u64>,
     last_imu: Option<Imu<T>>,
     gps_clock_us: Option<u64>,
     mag_clock_us: Option<u64>,
@@ -381,6 +391,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// Per GPS block: sum and count of the NIS of the accepted fusions of
     /// the current divergence window.
     gps_nis: [(T, u32); 2],
+    /// Per GPS block: exponential mean (weight `NIS_MEAN_WEIGHT`) of the NIS of every fix,
+    /// each at most the block's gate (the integrity monitor, `integrity.rs`).
+    gps_nis_mean: [T; 2],
     last_gps_reset: ZeroOption<GpsReset>,
     /// Whether the fixes are geodetic (`Some(true)`) or NED, from the first.
     geodetic_fixes: ZeroOption<bool>,
@@ -430,6 +443,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             extra_intensity: zeros_const(),
             initialized: false,
             imu_clock_us: None,
+            imu_candidate_us: None,
             last_imu: None,
             gps_clock_us: None,
             mag_clock_us: None,
@@ -444,6 +458,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             mag_fused_us: None,
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
+            gps_nis_mean: [T::ZERO; 2],
             last_gps_reset: ZeroOption::None,
             geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
@@ -515,6 +530,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         self.initialized = false;
         self.imu_clock_us = None;
+        self.imu_candidate_us = None;
         self.last_imu = None;
         self.gps_clock_us = None;
         self.mag_clock_us = None;
@@ -527,6 +543,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.mag_fused_us = None;
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
+        self.gps_nis_mean = [T::lit(3.0); 2];
         self.last_gps_reset = ZeroOption::None;
         self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;

@@ -49,6 +49,21 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.accumulate_accel(&s.accel_m_s2);
             return Ok(());
         };
+        if s.t_us > clock.saturating_add(MAX_TIME_JUMP_US) {
+            let confirmed = self
+                .imu_candidate_us
+                .is_some_and(|c| s.t_us > c && s.t_us - c <= MAX_TIME_JUMP_US);
+            if !confirmed {
+                self.imu_candidate_us = Some(s.t_us);
+                bump(&mut self.refusals.imu_ahead);
+                return Err(Error::OutOfRange {
+                    field: "imu.time",
+                    reason: "too far ahead of the previous sample (MAX_TIME_JUMP_US); \
+                             accepted when the next sample confirms it",
+                });
+            }
+        }
+        self.imu_candidate_us = None;
         let dt_us = s.t_us - clock;
         let (gyro, accel) = match self.last_imu {
             Some(prev) => (
@@ -132,17 +147,21 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 // it the state is unknown anyway, and larger variances leave
                 // the range a later update can handle in floating point.
                 let mut p = self.p;
+                let dt = us_to_s(dt_us.min(MAX_GAP_NOISE_US));
                 process::add_process_noise(
                     &mut p,
                     &self.nav_state(),
                     gyro,
                     accel,
-                    us_to_s(dt_us.min(MAX_GAP_NOISE_US)),
+                    dt,
                     &self.config,
                     &self.extra_intensity,
                 );
-                if all_finite_fixed(&p) {
+                let mut x = self.x;
+                self.carry_over_gap(&mut x, &mut p, dt);
+                if all_finite_fixed(&p) && all_finite_fixed(&x) {
                     self.p = p;
+                    self.x = x;
                 }
             } else {
                 self.accumulate_accel(&s.accel_m_s2);

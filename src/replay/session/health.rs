@@ -48,7 +48,7 @@ impl HealthSummary {
     pub fn of_filter(c: FilterRefusals, last: Option<GpsReset>) -> Self {
         Self {
             refused: non_zero(fields!(c; imu_non_finite, imu_out_of_range, imu_time,
-                imu_step_too_long, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
+                imu_step_too_long, imu_ahead, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
                 mag_time, not_positive_definite)),
             gated: non_zero(fields!(c; gps_position_rejected, gps_velocity_rejected,
                 mag_rejected, mag_disturbed)),

@@ -12,6 +12,7 @@
 //! | [`tables`] | the paper's simulation study: every estimator's RMSE, biases, consistency (NEES, NIS) and paired differences over seeds, in the low and high scenarios; the bound study | `reproduce`, `reproduce --seeds 20`, `reproduce --bound-study` |
 //! | [`sweep`] | the tables' estimators against one parameter (GPS rate, IMU rate, true delay) | `reproduce --sweep gps_rate` |
 //! | [`faults`] | the navigator through thirteen faults (GPS outage and jumps, IMU dropouts and jitter, time going back, magnetic disturbance, in-flight start) | `reproduce --faults` |
+//! | [`integrity`] | the protection levels: misleading information under seventeen faults and on clean runs of the three estimators, availability, tightness, the EKFs' future stamps and divergence | `reproduce --integrity` |
 //! | [`delay`] | the delay loop: lock-on, steps, ramps, jitter, slow GPS, negative and out-of-range delays, honest sigma, AEKF17 at hover | `reproduce --delay-suite` |
 //!
 //! [`check`] judges verdicts, [`stats`] holds the statistics over seeds, [`setup`] the
@@ -39,6 +40,7 @@
 pub mod check;
 pub mod delay;
 pub mod faults;
+pub mod integrity;
 pub mod setup;
 pub mod stats;
 pub mod sweep;
@@ -142,6 +144,11 @@ pub enum Task {
         /// `reference Clean`, `reference SteadyImuRate { .. }` or the row's name.
         name: String,
     },
+    /// One run of the integrity suite.
+    Integrity {
+        /// Scenario, seed, estimator and case, e.g. `high seed 2 proposed imu_gap_2s`.
+        name: String,
+    },
 }
 
 impl fmt::Display for Task {
@@ -152,7 +159,7 @@ impl fmt::Display for Task {
                 seed,
                 estimator,
             } => write!(f, "{} seed {seed} {estimator}", scenario.name()),
-            Task::Fault { name } => f.write_str(name),
+            Task::Fault { name } | Task::Integrity { name } => f.write_str(name),
         }
     }
 }
