@@ -298,12 +298,18 @@ macro_rules! aekf17_tests {
                 assert_eq!(gated, 2980, "every fix leaves the delay alone");
                 // The magnetometer still moves it through its correlations.
                 assert!(moved < 0.01, "the delay moved by {moved} s");
-                // Its std does not shrink (but for rounding) and grows by
-                // the random walk: sqrt(0.1² + 1e-6 * 298) = 0.10148 s.
-                assert!(min > 0.9999 * first, "std {first} -> {min} s");
+                // Its std does not shrink but by what the magnetometer
+                // takes through the correlations (0.9993 of the start with
+                // the 3-axis update, 0.9999 with the heading-only one it
+                // replaced) and grows by the random walk:
+                // sqrt(0.1² + 1e-6 * 298) = 0.10148 s.
+                assert!(min > 0.999 * first, "std {first} -> {min} s");
+                // The 3-axis magnetometer update ends 0.2 ms below it (f32
+                // 0.10132, f64 0.10128 s); the heading-only one ended within
+                // 0.1 ms, and so does this hover with `mag_three_axis` off.
                 let grown = (first * first + 1e-6 * 298.0).sqrt();
                 assert!(
-                    (last - grown).abs() < 1e-4,
+                    (last - grown).abs() < 3e-4,
                     "final std {last}, random walk {grown}"
                 );
                 // Without the gate the same hover drifts while the std
