@@ -582,20 +582,27 @@ impl Navigator {
                 a.shape()
             )));
         }
+        // Row-major rows of 3 when contiguous (the Python wrapper makes them so).
+        let rows = |v: &numpy::ndarray::ArrayView2<'_, f64>| -> Vec<[f64; 3]> {
+            v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect()
+        };
+        let (g, a): (Vec<[f64; 3]>, Vec<[f64; 3]>) = match (gyro.as_slice(), accel.as_slice()) {
+            (Ok(g), Ok(a)) => (
+                g.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect(),
+                a.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect(),
+            ),
+            _ => (rows(&g), rows(&a)),
+        };
         let nav = &mut self.nav;
         let result = py.detach(|| {
             let mut out = Vec::with_capacity(if estimates { n * ESTIMATE_COLUMNS } else { 0 });
             let mut skipped = 0;
-            for i in 0..n {
-                let imu = Imu::new(
-                    t[i],
-                    [g[[i, 0]], g[[i, 1]], g[[i, 2]]].into(),
-                    [a[[i, 0]], a[[i, 1]], a[[i, 2]]].into(),
-                );
+            for (i, ((&t_us, gyro), accel)) in t.iter().zip(&g).zip(&a).enumerate() {
+                let imu = Imu::new(t_us, (*gyro).into(), (*accel).into());
                 match nav.push_imu(&imu) {
                     Ok(()) => {}
                     Err(_) if skip_errors => skipped += 1,
-                    Err(e) => return Err(format!("sample {i} (t_us {}): {e}", t[i])),
+                    Err(e) => return Err(format!("sample {i} (t_us {t_us}): {e}")),
                 }
                 if estimates {
                     flatten_estimate(nav.estimate().as_ref(), &mut out);
