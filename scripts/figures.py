@@ -23,7 +23,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "docs" / "results"
 BEGIN = re.compile(r"^<!-- figures:begin (\S+)(?: (hand-written: .*))? -->$")
 REPRO = "cargo run --release --features sim --example reproduce --"
-REPLAY = "cargo run --release --features replay --example replay --"
+REPLAY = "delaynav replay"  # cargo install --path cli
 HAND_TUNED = "--accel-noise-density 0.05 --gyro-noise-density 0.005 --declination-deg 11.8"
 
 

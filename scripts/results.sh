@@ -47,11 +47,11 @@ step() {
   printf '%4d s\n' $((SECONDS - t)) >&2
 }
 
-echo "building the examples (release)" >&2
-cargo build --release --all-features --example reproduce --example replay
-bin="${CARGO_TARGET_DIR:-target}/release/examples"
-reproduce() { "$bin/reproduce" "$@"; }
-replay() { "$bin/replay" "$@"; }
+echo "building the reproduce example and the delaynav command (release)" >&2
+cargo build --release --all-features --example reproduce -p delaynav-cli
+bin="${CARGO_TARGET_DIR:-target}/release"
+reproduce() { "$bin/examples/reproduce" "$@"; }
+replay() { "$bin/delaynav" replay "$@"; }
 hand_tuned=(--accel-noise-density 0.05 --gyro-noise-density 0.005 --declination-deg 11.8)
 sim_defaults=(--accel-noise-density 0.031 --gyro-noise-density 0.0013 --declination-deg 0)
 
