@@ -92,6 +92,16 @@ nav_memory() {
 }
 step nav-memory nav_memory
 step bound-study reproduce --seeds 20 --bound-study --json "$out/bound-study.json"
+# The public items by kind (scripts/public-api.py on rustdoc's JSON, nightly), default features,
+# then with the hidden `internals` (docs/api.md, "Size").
+public_api() {
+  local doc="${CARGO_TARGET_DIR:-target}/doc/delaynav.json"
+  cargo +nightly rustdoc --lib -- -Z unstable-options --output-format json
+  python3 scripts/public-api.py "$doc" --json "$out/public-api.json"
+  cargo +nightly rustdoc --lib -- -Z unstable-options --output-format json --document-hidden-items
+  python3 scripts/public-api.py "$doc" --json "$out/public-api-hidden.json"
+}
+step public-api public_api
 
 echo "rendering the markdown" >&2
 python3 scripts/figures.py
