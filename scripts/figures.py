@@ -23,7 +23,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "docs" / "results"
 BEGIN = re.compile(r"^<!-- figures:begin (\S+)(?: (hand-written: .*))? -->$")
 REPRO = "cargo run --release --features sim --example reproduce --"
-REPLAY = "cargo run --release --features replay --example replay --"
+REPLAY = "delaynav replay"  # cargo install --path cli
 HAND_TUNED = "--accel-noise-density 0.05 --gyro-noise-density 0.005 --declination-deg 11.8"
 
 
@@ -788,7 +788,22 @@ def nav_footprint():
     ])
 
 
+KIND_NAMES = [("module", "modules"), ("struct", "structs"), ("enum", "enums"), ("trait", "traits"),
+              ("function", "functions"), ("constant", "constants"), ("type_alias", "type aliases"),
+              ("method", "methods"), ("assoc_const", "associated constants")]
+
+
+def public_api():
+    doc, hidden = load("public-api.json"), load("public-api-hidden.json")
+    kinds = ", ".join(f"{doc['by_kind'].get(k, 0)} {name}" for k, name in KIND_NAMES)
+    return ["Counted with `scripts/public-api.py` on rustdoc's JSON (default features), the command "
+            f"in its header: {doc['total']} public items ({kinds}), and "
+            f"{hidden['total'] - doc['total']} more under `internals` (counted with rustdoc's "
+            f"`--document-hidden-items`: {hidden['total']})."]
+
+
 RENDERERS = {
+    "public-api": public_api,
     "where-it-stands": where_it_stands,
     "calibrated": calibrated,
     "monte-carlo-20": monte_carlo_20,

@@ -47,11 +47,11 @@ step() {
   printf '%4d s\n' $((SECONDS - t)) >&2
 }
 
-echo "building the examples (release)" >&2
-cargo build --release --all-features --example reproduce --example replay
-bin="${CARGO_TARGET_DIR:-target}/release/examples"
-reproduce() { "$bin/reproduce" "$@"; }
-replay() { "$bin/replay" "$@"; }
+echo "building the reproduce example and the delaynav command (release)" >&2
+cargo build --release --all-features --example reproduce -p delaynav-cli
+bin="${CARGO_TARGET_DIR:-target}/release"
+reproduce() { "$bin/examples/reproduce" "$@"; }
+replay() { "$bin/delaynav" replay "$@"; }
 hand_tuned=(--accel-noise-density 0.05 --gyro-noise-density 0.005 --declination-deg 11.8)
 sim_defaults=(--accel-noise-density 0.031 --gyro-noise-density 0.0013 --declination-deg 0)
 
@@ -92,6 +92,16 @@ nav_memory() {
 }
 step nav-memory nav_memory
 step bound-study reproduce --seeds 20 --bound-study --json "$out/bound-study.json"
+# The public items by kind (scripts/public-api.py on rustdoc's JSON, nightly), default features,
+# then with the hidden `internals` (docs/api.md, "Size").
+public_api() {
+  local doc="${CARGO_TARGET_DIR:-target}/doc/delaynav.json"
+  cargo +nightly rustdoc --lib -- -Z unstable-options --output-format json
+  python3 scripts/public-api.py "$doc" --json "$out/public-api.json"
+  cargo +nightly rustdoc --lib -- -Z unstable-options --output-format json --document-hidden-items
+  python3 scripts/public-api.py "$doc" --json "$out/public-api-hidden.json"
+}
+step public-api public_api
 
 echo "rendering the markdown" >&2
 python3 scripts/figures.py

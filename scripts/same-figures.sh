@@ -8,7 +8,8 @@
 # target/same-figures; a target directory shared between checkouts can reuse another checkout's
 # build), runs the default tables, `--faults`, `--delay-suite` and `--seeds 20`, and compares the
 # JSON leaf by leaf, timing fields (`us_per_imu_sample*`) aside. With ../shared/data beside the
-# checkout (or DELAYNAV_SHARED_DATA), also builds `examples/replay` and compares the log171
+# checkout (or DELAYNAV_SHARED_DATA), also builds the replay (`delaynav replay`, or `examples/replay`
+# at revisions before the command) and compares the log171
 # replays of scripts/results.sh (no flag on log171.bin, the Table 7 run with 0.2 s added, the
 # delay step). Prints the differences of each file and exits 1 when there are any.
 # Used for issue 23's moves: scripts/same-figures.sh cc1addc
@@ -25,10 +26,16 @@ for rev in "$base" "$new"; do
   tree="$out/tree-$sha"; dir="$out/$sha"; mkdir -p "$dir"
   [ -d "$tree" ] || git -C "$root" worktree add --detach -q "$tree" "$sha"
   echo "building $rev ($sha)"
-  (cd "$tree" && CARGO_TARGET_DIR="$out/target-$sha" \
-     cargo build -q --release --all-features --example reproduce --example replay)
+  if [ -d "$tree/examples/replay" ]; then
+    (cd "$tree" && CARGO_TARGET_DIR="$out/target-$sha" \
+       cargo build -q --release --all-features --example reproduce --example replay)
+    replay=("$out/target-$sha/release/examples/replay")
+  else
+    (cd "$tree" && CARGO_TARGET_DIR="$out/target-$sha" \
+       cargo build -q --release --all-features --example reproduce -p delaynav-cli)
+    replay=("$out/target-$sha/release/delaynav" replay)
+  fi
   bin="$out/target-$sha/release/examples/reproduce"
-  replay="$out/target-$sha/release/examples/replay"
   for run in "default:" "faults:--faults" "delay:--delay-suite" "mc20:--seeds 20"; do
     name=${run%%:*}; flags=${run#*:}
     echo "  $name"
@@ -37,10 +44,10 @@ for rev in "$base" "$new"; do
   done
   if [ -d "$data" ]; then
     echo "  log171 replays"
-    "$replay" "$data/log171.bin" --json "$dir/log171.json" > "$dir/log171.txt" 2>&1
-    "$replay" "$data" --from 75 --to 225 --estimator all --add-gps-delay 0.2 \
+    "${replay[@]}" "$data/log171.bin" --json "$dir/log171.json" > "$dir/log171.txt" 2>&1
+    "${replay[@]}" "$data" --from 75 --to 225 --estimator all --add-gps-delay 0.2 \
       --json "$dir/table7-0.2.json" "${hand_tuned[@]}" > "$dir/table7-0.2.txt" 2>&1
-    "$replay" "$data" --from 75 --to 225 --estimator all --add-gps-delay 0.2 --add-delay-from 150 \
+    "${replay[@]}" "$data" --from 75 --to 225 --estimator all --add-gps-delay 0.2 --add-delay-from 150 \
       --json "$dir/step.json" "${hand_tuned[@]}" --quiet > "$dir/step.txt" 2>&1
   fi
   git -C "$root" worktree remove --force "$tree"

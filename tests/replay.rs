@@ -1244,9 +1244,9 @@ fn proposed_meets_the_flight_log_targets() {
     }
 }
 
-/// log171's flight window as the replay example runs it: replayed from
+/// log171's flight window as `delaynav replay` runs it: replayed from
 /// 45 s, scored from 75 s.
-fn replay_example_window() -> delaynav::replay::RunOptions {
+fn replay_command_window() -> delaynav::replay::RunOptions {
     delaynav::replay::RunOptions {
         start_us: Some(45_000_000),
         score_from_us: Some(75_000_000),
@@ -1256,7 +1256,7 @@ fn replay_example_window() -> delaynav::replay::RunOptions {
 
 /// The proposed navigator on log171 with the filters of
 /// [`log171_filter_config`]. `adapt`: the delay loop adapted to the log's
-/// measured GPS rate, as the replay example configures it; else the
+/// measured GPS rate, as `delaynav replay` configures it; else the
 /// library's default delay loop.
 fn proposed_on_log171(
     dir: &Path,
@@ -1281,7 +1281,7 @@ fn proposed_on_log171(
     run_on(proposed, &files, reader, options)
 }
 
-/// Issue 11 on the real log, the paper's Table 7 as the replay example runs
+/// Issue 11 on the real log, the paper's Table 7 as `delaynav replay` runs
 /// it (loop adapted to the 4.98 Hz GPS): 0.1, 0.2 and 0.3 s added to every
 /// fix move the estimate by the added delay within 3 ms (measured: 0.101 /
 /// 0.201 / 0.302 s; 0.286 s for 0.3 s when one second of disagreement
@@ -1289,7 +1289,7 @@ fn proposed_on_log171(
 #[test]
 fn rate_adapted_loop_moves_by_the_added_delay() {
     let Some(dir) = log171() else { return };
-    let window = replay_example_window();
+    let window = replay_command_window();
     let final_with = |added_s: f64| {
         let reader = ReaderOptions::default()
             .with_added_gps_delay(added_s, None)
@@ -1317,10 +1317,10 @@ fn rate_adapted_loop_moves_by_the_added_delay() {
 }
 
 /// The proposed navigator through log171's flight window (replayed from
-/// 45 s, scored from 75 s, as the replay example runs it), without and with
+/// 45 s, scored from 75 s, as `delaynav replay` runs it), without and with
 /// 0.2 s added to the fixes received from 150 s on: (final delay without,
 /// the step's summary against it). `adapt`: the delay loop adapted to the
-/// log's measured GPS rate, as the replay example configures it; else the
+/// log's measured GPS rate, as `delaynav replay` configures it; else the
 /// library's default delay loop.
 fn proposed_through_a_delay_step(
     dir: &Path,
@@ -1329,7 +1329,7 @@ fn proposed_through_a_delay_step(
     let run = |reader: &ReaderOptions, options: &delaynav::replay::RunOptions| {
         proposed_on_log171(dir, adapt, reader, options)
     };
-    let window = replay_example_window();
+    let window = replay_command_window();
     let plain = run(&ReaderOptions::default(), &window);
     let without = plain.final_delay_s.unwrap();
     let reader = ReaderOptions::default()

@@ -205,29 +205,47 @@ fn html(
         body.push_str("<p>The log has no onboard attitude: the estimators alone.</p>");
     }
     for (axis, name) in ["roll", "pitch", "yaw"].iter().enumerate() {
-        let mut series: Vec<Series> = traces
-            .iter()
-            .enumerate()
-            .map(|(k, (estimator, trace))| {
-                let points = trace
-                    .iter()
-                    .map(|e| (e.t_us as f64 * 1e-6, setup.aligned_euler_deg(e)[axis]))
-                    .filter(|(t, _)| in_window(*t))
-                    .collect();
-                Series::line(estimator, COLOURS[k % COLOURS.len()], points)
-            })
-            .collect();
-        if let Some(r) = &reference {
-            let points = r
+        // Yaw is unwrapped (no jump at +-180 deg), each estimator on the
+        // reference's turn where there is one.
+        let yaw = *name == "yaw";
+        let onboard: Option<Vec<(f64, f64)>> = reference.as_ref().map(|r| {
+            let mut points: Vec<(f64, f64)> = r
                 .iter()
                 .map(|r| (r[0], r[axis + 1]))
                 .filter(|(t, _)| in_window(*t))
                 .collect();
+            if yaw {
+                unwrap_deg(&mut points, None);
+            }
+            points
+        });
+        let first_onboard = onboard.as_ref().and_then(|o| o.first().map(|p| p.1));
+        let mut series: Vec<Series> = traces
+            .iter()
+            .enumerate()
+            .map(|(k, (estimator, trace))| {
+                let mut points: Vec<(f64, f64)> = trace
+                    .iter()
+                    .map(|e| (e.t_us as f64 * 1e-6, setup.aligned_euler_deg(e)[axis]))
+                    .filter(|(t, _)| in_window(*t))
+                    .collect();
+                if yaw {
+                    unwrap_deg(&mut points, first_onboard);
+                }
+                Series::line(estimator, COLOURS[k % COLOURS.len()], points)
+            })
+            .collect();
+        if let Some(points) = onboard {
             series.push(Series::line("onboard", "#000000", points));
         }
+        let title = if yaw {
+            "yaw, degrees (unwrapped)".to_string()
+        } else {
+            format!("{name}, degrees")
+        };
         body.push_str(&plot(
             &format!("attitude-{name}"),
-            &format!("{name}, degrees"),
+            &title,
             "time on the log's clock, s",
             "degrees",
             &series,
@@ -436,4 +454,51 @@ pub fn main(args: &ReportArgs) -> Result<(), Failure> {
         crate::replay::write_json(path, &report.to_json())?;
     }
     Ok(())
+}
+
+/// Makes an angle series (degrees) continuous: each point moved by whole
+/// turns to within 180 deg of the one before; the first point moved to
+/// within 180 deg of `near` when given (an estimator onto the reference's
+/// turn).
+fn unwrap_deg(points: &mut [(f64, f64)], near: Option<f64>) {
+    let Some(first) = points.first().map(|p| p.1) else {
+        return;
+    };
+    let mut previous = match near {
+        Some(n) if n.is_finite() && first.is_finite() => {
+            first + 360.0 * ((n - first) / 360.0).round()
+        }
+        _ => first,
+    };
+    for p in points.iter_mut() {
+        if !(p.1.is_finite() && previous.is_finite()) {
+            continue;
+        }
+        p.1 += 360.0 * ((previous - p.1) / 360.0).round();
+        previous = p.1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unwrap_deg;
+
+    #[test]
+    fn yaw_is_unwrapped_across_180_and_put_on_the_reference_turn() {
+        let mut yaw = vec![(0.0, 170.0), (1.0, 179.0), (2.0, -178.0), (3.0, -170.0)];
+        unwrap_deg(&mut yaw, None);
+        assert_eq!(
+            yaw.iter().map(|p| p.1).collect::<Vec<_>>(),
+            [170.0, 179.0, 182.0, 190.0]
+        );
+        let mut estimator = vec![(0.0, -175.0), (1.0, 175.0)];
+        unwrap_deg(&mut estimator, Some(540.0));
+        assert_eq!(
+            estimator.iter().map(|p| p.1).collect::<Vec<_>>(),
+            [545.0, 535.0]
+        );
+        let mut gap = vec![(0.0, 10.0), (1.0, f64::NAN), (2.0, 350.0)];
+        unwrap_deg(&mut gap, None);
+        assert_eq!(gap[2].1, -10.0);
+    }
 }

@@ -163,11 +163,9 @@ impl Drop for Reporter {
 fn enforce(verdicts: &[Verdict], known: &[String]) -> Result<(), Failure> {
     let judgement = judge(verdicts, known);
     eprint!("{judgement}");
-    if judgement.passed() {
-        Ok(())
-    } else {
-        Err(format!("--check: {}", judgement.failures.join("; ")).into())
-    }
+    judgement
+        .failure()
+        .map_or(Ok(()), |reason| Err(reason.into()))
 }
 
 fn tables_options(

@@ -114,11 +114,9 @@ fn write_json(path: &Path, json: &Value) -> Result<(), Box<dyn Error>> {
 fn enforce(verdicts: &[Verdict], known: &[String]) -> Result<(), Box<dyn Error>> {
     let judgement = judge(verdicts, known);
     eprint!("{judgement}");
-    if judgement.passed() {
-        Ok(())
-    } else {
-        Err(format!("--check: {}", judgement.failures.join("; ")).into())
-    }
+    judgement
+        .failure()
+        .map_or(Ok(()), |reason| Err(reason.into()))
 }
 
 fn main() -> Result<(), Box<dyn Error>> {

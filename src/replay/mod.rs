@@ -40,7 +40,7 @@
 //!
 //! # Replaying through the estimators
 //! [`replay`] drives one estimator through a log and scores it. The whole
-//! replay of the `replay` example is [`session`]: [`ReplayOptions`] to a
+//! replay `delaynav replay` runs is [`session`]: [`ReplayOptions`] to a
 //! [`ReplaySetup`] (defaults derived from the log, a TOML file of
 //! [`config_file`] merged over them), run through the [`ESTIMATORS`] into a
 //! [`ReplayReport`] (its JSON summary and console text).

@@ -1,5 +1,5 @@
 //! A replay of a log through the crate's estimators, scored against the
-//! log's onboard reference: what the `replay` example (and any front end)
+//! log's onboard reference: what `delaynav replay` (and any front end)
 //! runs, as library calls.
 //!
 //! # What a replay does
@@ -29,7 +29,7 @@
 //! values that override what the log gives (`declination_deg`,
 //! `inclination_deg`, `trim_rad`, `accel_noise_density`,
 //! `gyro_noise_density`, `accel_bias_random_walk`) and a configuration file
-//! (`config_file`). `ReplayOptions::default()` is the example's command
+//! (`config_file`). `ReplayOptions::default()` is `delaynav replay`'s command
 //! line without flags.
 //!
 //! # Outputs
@@ -71,7 +71,7 @@
 //! let scan = setup.scan()?;
 //! let report = setup.run(scan, &select_estimators("all")?, &mut ())?;
 //! print!("{report}"); // the console table and the health summary
-//! let json = report.to_json(); // the example's --json
+//! let json = report.to_json(); // delaynav replay --json
 //! println!("{}", json["estimators"][0]["yaw_rms_deg"]);
 //! # Ok(())
 //! # }
@@ -98,7 +98,7 @@ use crate::estimate::Estimate;
 use crate::{DelayCompensatedNavConfig, Ekf16Config};
 use std::path::{Path, PathBuf};
 
-/// What to replay and how: the `replay` example's command line as a struct;
+/// What to replay and how: `delaynav replay`'s command line as a struct;
 /// `ReplayOptions::default()` is the command line without flags. `None`
 /// takes the value from the log (see [`DerivedDefaults`]).
 #[derive(Debug, Clone, Default, PartialEq)]

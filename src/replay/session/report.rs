@@ -157,7 +157,7 @@ impl EstimatorReport {
 }
 
 impl ReplayReport {
-    /// The JSON summary (the example's `--json`; keys in the module docs).
+    /// The JSON summary (`delaynav replay --json`; keys in the module docs).
     pub fn to_json(&self) -> Value {
         let setup = &self.setup;
         let (options, run) = (&setup.options, &setup.run);
@@ -241,7 +241,7 @@ impl fmt::Display for ReplayReport {
 }
 
 /// The CSV of every delay-loop update of each estimator that has a loop
-/// (the example's `--delay-windows`): `estimator, t_s, delay_s,
+/// (`delaynav replay --delay-windows`): `estimator, t_s, delay_s,
 /// delay_std_s, status`, then per axis `n`, `e`, `d` its `_valid`,
 /// `_delay_s`, `_peak`, `_accel_var` and `_interior`.
 pub fn write_delay_windows<W: Write>(

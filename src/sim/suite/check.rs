@@ -51,6 +51,11 @@ impl Judgement {
     pub fn passed(&self) -> bool {
         self.failures.is_empty()
     }
+
+    /// Why the run fails, on one line (`--check: REASON; REASON`); `None` when it passes.
+    pub fn failure(&self) -> Option<String> {
+        (!self.passed()).then(|| format!("--check: {}", self.failures.join("; ")))
+    }
 }
 
 impl fmt::Display for Judgement {
@@ -139,6 +144,7 @@ mod tests {
     fn a_failing_or_nan_row_fails_the_run() {
         let rows = [verdict("a", true, Some(0.5)), verdict("b", true, Some(0.9))];
         assert!(judge(&rows, &[]).passed());
+        assert_eq!(judge(&rows, &[]).failure(), None);
         let failing = [
             verdict("a", true, Some(0.5)),
             verdict("b", false, Some(2.0)),
@@ -147,6 +153,10 @@ mod tests {
         // A NaN or missing figure fails even where the row says it passed.
         let nan = [verdict("a", true, Some(f64::NAN)), verdict("b", true, None)];
         assert_eq!(judge(&nan, &[]).failures, ["a failed", "b failed"]);
+        assert_eq!(
+            judge(&nan, &[]).failure().as_deref(),
+            Some("--check: a failed; b failed")
+        );
         let judgement = judge(&failing, &[]);
         assert!(!judgement.passed());
         assert!(
