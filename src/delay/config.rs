@@ -131,7 +131,9 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// How long the disagreement must last before re-acquiring, s.
     pub reacquire_after_s: T,
     /// A standard deviation at or below which the estimate starts locked, s
-    /// (e.g. an offline calibration); a less certain start acquires first.
+    /// (e.g. an offline calibration); a less certain start acquires first,
+    /// and locks once its reported standard deviation
+    /// ([`DelayLoop::delay_std_s`](crate::delay::DelayLoop::delay_std_s)) is within it.
     pub lock_std_s: T,
     /// Acquisition: the window estimate must stay within this many of its
     /// standard deviations of the previous one ...

@@ -204,6 +204,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             .reset(z_sum / n, (r_sum / (n * n)).sqrt())
             .is_ok();
         if restarted {
+            self.bias_mean = T::zero();
+            self.bias_spread = T::zero();
             self.locked = false;
             self.following = true;
             self.stable_since_us = None;
