@@ -140,8 +140,9 @@ pub struct DelayLoopConfig<T: Scalar> {
     pub acquire_sigma: T,
     /// ... for this long before the loop locks, s.
     pub lock_after_s: T,
-    /// How long the correlation peaks of the moving axes must sit on one edge
-    /// of the range before the status reports the delay out of range, s.
+    /// How long the run of windows peaking on one edge of the range must last
+    /// (its share of the voting windows at least 0.5, `docs/delay.md`, "Range
+    /// and status") before the status reports the delay out of range, s.
     pub out_of_range_after_s: T,
     /// Window of the second delay observation, from the horizon filter's
     /// GPS innovations ([`InnovationDelay`](crate::delay::InnovationDelay)), s: every this long its

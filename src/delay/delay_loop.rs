@@ -437,12 +437,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 && p.peak >= self.config.min_peak
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4;
         }
-        self.track_edges(t_us, &peaks, &valid);
         let buffer_s = self.config.buffer_s;
         let dt_s = self
             .last_update_us
             .map_or(buffer_s, |last| T::lit((t_us - last) as f64 * 1e-6))
             .min(buffer_s);
+        self.track_edges(t_us, dt_s, &peaks, &valid);
         let ms2 = T::lit(1e-6);
         let reference = self.config.reference_accel_variance_m2_s4;
         let floor = self.config.min_accel_variance_m2_s4.max(T::lit(1e-6));
@@ -479,21 +479,20 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             gains
         };
         self.last_update_us = Some(t_us);
-        self.status = match self.edge.get() {
-            Some(run)
-                if T::lit((t_us - run.since_us) as f64 * 1e-6)
-                    >= self.config.out_of_range_after_s =>
-            {
+        self.status = match self.out_of_range(t_us) {
+            Some(run) => {
                 let range = &self.config.fusion;
                 if run.below {
                     DelayStatus::BelowRange {
                         edge_s: range.delay_min_s,
                         peak: run.peak,
+                        share: run.share,
                     }
                 } else {
                     DelayStatus::AboveRange {
                         edge_s: range.delay_max_s,
                         peak: run.peak,
+                        share: run.share,
                     }
                 }
             }
