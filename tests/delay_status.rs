@@ -131,7 +131,8 @@ macro_rules! status_tests {
                 let first = updates.iter().find(|u| u.2.is_out_of_range()).expect("reported");
                 assert!(first.0 < 15.0, "reported at {} s", first.0);
                 match first.2 {
-                    DelayStatus::BelowRange { edge_s, peak } => {
+                    DelayStatus::BelowRange { edge_s, peak, share } => {
+                        assert!((0.5..=1.0).contains(&share), "{share}");
                         assert_eq!(edge_s, 0.0);
                         assert!(peak > 0.5 && peak <= 1.0, "{peak}");
                     }
@@ -230,7 +231,11 @@ fn range_beyond_capacity_is_refused() {
 #[test]
 fn status_predicates_name_one_state_each() {
     use delaynav::DelayStatus;
-    let edge = |edge_s| DelayStatus::<f64>::BelowRange { edge_s, peak: 0.9 };
+    let edge = |edge_s| DelayStatus::<f64>::BelowRange {
+        edge_s,
+        peak: 0.9,
+        share: 0.6,
+    };
     let all = [
         DelayStatus::WaitingForData,
         DelayStatus::WaitingForMotion,
@@ -240,6 +245,7 @@ fn status_predicates_name_one_state_each() {
         DelayStatus::AboveRange {
             edge_s: 1.0,
             peak: 0.9,
+            share: 0.6,
         },
     ];
     let locked: Vec<bool> = all.iter().map(DelayStatus::is_locked).collect();

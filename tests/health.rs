@@ -353,10 +353,11 @@ fn health_and_its_states_print_in_words() {
     let below = DelayStatus::BelowRange {
         edge_s: 0.0f64,
         peak: 0.874,
+        share: 0.6,
     };
     assert_eq!(
         below.to_string(),
-        "below the range (edge 0.000 s, peak 0.87)"
+        "below the range (edge 0.000 s, peak 0.87, share 0.60)"
     );
     assert_eq!(DelayStatus::<f32>::Locked.to_string(), "locked");
 }

@@ -131,15 +131,18 @@ pub struct DelayLoopConfig<T: Scalar> {
     /// How long the disagreement must last before re-acquiring, s.
     pub reacquire_after_s: T,
     /// A standard deviation at or below which the estimate starts locked, s
-    /// (e.g. an offline calibration); a less certain start acquires first.
+    /// (e.g. an offline calibration); a less certain start acquires first,
+    /// and locks once its reported standard deviation
+    /// ([`DelayLoop::delay_std_s`](crate::delay::DelayLoop::delay_std_s)) is within it.
     pub lock_std_s: T,
     /// Acquisition: the window estimate must stay within this many of its
     /// standard deviations of the previous one ...
     pub acquire_sigma: T,
     /// ... for this long before the loop locks, s.
     pub lock_after_s: T,
-    /// How long the correlation peaks of the moving axes must sit on one edge
-    /// of the range before the status reports the delay out of range, s.
+    /// How long the run of windows peaking on one edge of the range must last
+    /// (its share of the voting windows at least 0.5, `docs/delay.md`, "Range
+    /// and status") before the status reports the delay out of range, s.
     pub out_of_range_after_s: T,
     /// Window of the second delay observation, from the horizon filter's
     /// GPS innovations ([`InnovationDelay`](crate::delay::InnovationDelay)), s: every this long its

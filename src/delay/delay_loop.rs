@@ -52,6 +52,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         shift_min: 0,
         innovation_ratio: T::ZERO,
         innovations_matched: 0,
+        bias_mean: T::ZERO,
+        bias_spread: T::ZERO,
         locked: false,
         following: false,
         stable_since_us: None,
@@ -114,6 +116,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.shift_min = sizes.shift_min;
         self.innovation_ratio = T::one();
         self.innovations_matched = 0;
+        self.bias_mean = T::zero();
+        self.bias_spread = T::zero();
         self.locked = config.fusion.initial_std_s <= config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;
@@ -285,11 +289,14 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     }
 
     /// Standard deviation of the estimate, s: the GFA's `sqrt(P)` scaled by
-    /// the innovation match (over about 10 s of updates) once locked, so
-    /// that it describes the errors the loop actually makes rather than its
-    /// noise model's.
+    /// the innovation match (over about 10 s of updates) from the first valid
+    /// update on, plus the bias the windows keep showing on one side (the
+    /// bias watch, `docs/delay.md`, "Sigma"), so that it describes the
+    /// errors the loop actually makes rather than its noise model's. The loop
+    /// reports [`DelayStatus::Locked`] once it is within
+    /// [`DelayLoopConfig::lock_std_s`].
     pub fn delay_std_s(&self) -> T {
-        (self.fusion.variance_s2() * self.sigma_scale2()).sqrt()
+        (self.fusion.variance_s2() * self.sigma_scale2() + self.bias2()).sqrt()
     }
 
     /// The gain fusion's own standard deviation `sqrt(P)`, s, before the
@@ -328,6 +335,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return Err(Error::not_configured());
         }
         self.fusion.reset(delay_s, std_s)?;
+        self.bias_mean = T::zero();
+        self.bias_spread = T::zero();
         self.locked = std_s <= self.config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;
@@ -428,12 +437,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 && p.peak >= self.config.min_peak
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4;
         }
-        self.track_edges(t_us, &peaks, &valid);
         let buffer_s = self.config.buffer_s;
         let dt_s = self
             .last_update_us
             .map_or(buffer_s, |last| T::lit((t_us - last) as f64 * 1e-6))
             .min(buffer_s);
+        self.track_edges(t_us, dt_s, &peaks, &valid);
         let ms2 = T::lit(1e-6);
         let reference = self.config.reference_accel_variance_m2_s4;
         let floor = self.config.min_accel_variance_m2_s4.max(T::lit(1e-6));
@@ -463,25 +472,27 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             let gains = self.fusion.step(z, valid, dt_s, q_s2, r_s2)?.gains;
             self.fuse_innovations(t_us);
             let lock = self.config.lock_std_s;
-            self.locked |= valid.iter().any(|&v| v) && self.fusion.variance_s2() <= lock * lock;
+            // Locked when the reported sigma (not the noise model's) is within the lock
+            // threshold: the status says what the sigma says.
+            let std = self.delay_std_s();
+            self.locked |= valid.iter().any(|&v| v) && std <= lock;
             gains
         };
         self.last_update_us = Some(t_us);
-        self.status = match self.edge.get() {
-            Some(run)
-                if T::lit((t_us - run.since_us) as f64 * 1e-6)
-                    >= self.config.out_of_range_after_s =>
-            {
+        self.status = match self.out_of_range(t_us) {
+            Some(run) => {
                 let range = &self.config.fusion;
                 if run.below {
                     DelayStatus::BelowRange {
                         edge_s: range.delay_min_s,
                         peak: run.peak,
+                        share: run.share,
                     }
                 } else {
                     DelayStatus::AboveRange {
                         edge_s: range.delay_max_s,
                         peak: run.peak,
+                        share: run.share,
                     }
                 }
             }

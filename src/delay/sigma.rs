@@ -1,5 +1,6 @@
 //! The reported standard deviation: the gain fusion's, matched to the
-//! innovations the loop actually sees once locked; the horizon's
+//! innovations the loop actually sees from its first valid update, plus the
+//! bias its windows keep showing on one side; the horizon's
 //! innovation windows as a second observation of the delay.
 
 use super::delay_loop::acquiring_window_variance;
@@ -17,6 +18,12 @@ pub const SIGMA_MATCH_TIME_S: f64 = 10.0;
 /// it only removes the pessimism of the noise model).
 pub const SIGMA_SCALE2_MIN: f64 = 0.01;
 
+/// The bias watch ([`DelayLoop::delay_std_s`]) counts the squared running mean of the
+/// innovations beyond this many times the variance the windows' own scatter gives that mean
+/// (1 would be its unbiased estimate; 2 keeps the calibrated runs' sigma from growing on the
+/// noise of the mean: the delay suite's `sigma_coverage` stays within its band).
+pub const BIAS_NOISE_FACTOR: f64 = 2.0;
+
 /// Largest squared scale of the reported sigma with the innovation
 /// observation on (its windows' variances are measured, not pessimistic, so
 /// the match may widen the sigma as well as narrow it).
@@ -26,8 +33,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     DelayLoop<T, BUF, LAGS, HIST>
 {
     /// The squared scale applied to the GFA's variance: the mean normalized
-    /// innovation squared while locked (1 before), within
-    /// `[SIGMA_SCALE2_MIN, 1]`.
+    /// innovation squared from the first valid update on (1 before it, and while
+    /// following after a re-acquisition), within `[SIGMA_SCALE2_MIN, 1]`.
     pub(super) fn sigma_scale2(&self) -> T {
         if self.config.innovation_window_s > T::zero() {
             return if self.locked && !self.following && self.window_nis > T::zero() {
@@ -37,7 +44,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 T::one()
             };
         }
-        if self.locked && !self.following {
+        if self.innovations_matched > 0 && !self.following {
             self.innovation_ratio
                 .clamp(T::lit(SIGMA_SCALE2_MIN), T::one())
         } else {
@@ -45,11 +52,31 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         }
     }
 
+    /// The bias watch, s^2: the square of the running mean innovation `m` beyond
+    /// [`BIAS_NOISE_FACTOR`] times the variance its own scatter gives it,
+    /// `max(0, m^2 - k s_e^2 / n)`, `s_e^2` the running variance of the windows' innovations
+    /// and `n` the independent windows in the running mean (`2 T_match / T_buffer`, at most
+    /// the windows seen): an error the windows keep showing on one side, which the
+    /// normalized squares of [`match_innovations`](Self::match_innovations) hide under the
+    /// noise model's `R_i`. 0 while following after a re-acquisition.
+    pub(super) fn bias2(&self) -> T {
+        if self.following || self.innovations_matched == 0 {
+            return T::zero();
+        }
+        let n = T::lit(f64::from(self.innovations_matched));
+        let independent = (T::lit(2.0 * SIGMA_MATCH_TIME_S) / self.config.buffer_s).min(n);
+        let k = T::lit(BIAS_NOISE_FACTOR);
+        (self.bias_mean * self.bias_mean - k * self.bias_spread / independent).max(T::zero())
+    }
+
     /// Covariance matching: the running mean, over [`SIGMA_MATCH_TIME_S`],
     /// of the valid axes' squared innovations `(z_i - tau)^2` divided by their
     /// predicted variance `P + Q + R_i` (one buffer's `R_i`: successive
     /// windows share their data, so one window is one measurement of that
-    /// variance). Only while locked.
+    /// variance); and the bias watch's running mean and variance of the
+    /// innovation of the valid axes' mean weighted by `1 / R_i`
+    /// ([`bias2`](Self::bias2)). From the first valid update on, acquiring or
+    /// locked (one sigma throughout, no step at the lock); not while following.
     pub(super) fn match_innovations(
         &mut self,
         dt_s: T,
@@ -58,16 +85,19 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         valid: &[bool; AXES],
         r_buffer_s2: &[T; AXES],
     ) {
-        if !self.locked || self.following {
+        if self.following {
             return;
         }
         let tau = self.fusion.delay_s();
         let p = self.fusion.variance_s2() + q_s2;
         let (mut sum, mut n) = (T::zero(), T::zero());
+        let (mut weighted, mut weight) = (T::zero(), T::zero());
         for axis in (0..AXES).filter(|&a| valid[a]) {
             let e = z[axis] - tau;
             sum += e * e / (p + r_buffer_s2[axis]);
             n += T::one();
+            weighted += e / r_buffer_s2[axis];
+            weight += T::one() / r_buffer_s2[axis];
         }
         if n > T::zero() {
             self.innovations_matched = self.innovations_matched.saturating_add(1);
@@ -75,6 +105,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 .min(T::one())
                 .max(T::one() / T::lit(f64::from(self.innovations_matched)));
             self.innovation_ratio += alpha * (sum / n - self.innovation_ratio);
+            if weight <= T::zero() {
+                return;
+            }
+            let d = weighted / weight - self.bias_mean;
+            self.bias_mean += alpha * d;
+            self.bias_spread += alpha * (d * d - self.bias_spread);
         }
     }
 
@@ -177,5 +213,37 @@ mod tests {
         );
     }
 
-    tests_in_both_precisions!(match_starts_as_a_mean);
+    /// The bias watch: windows that keep disagreeing with the estimate on one side
+    /// (+20 ms) put that disagreement into the reported sigma; windows scattered as much
+    /// on both sides (+-20 ms) do not.
+    fn bias_watch_counts_a_persistent_offset<T: Scalar>() {
+        let mut config = DelayLoopConfig::<T>::clean_input();
+        config.fusion.initial_std_s = T::lit(0.01);
+        let (dt, q) = (T::lit(0.1), T::zero());
+        let r = [T::lit(0.01 * 0.01); AXES];
+        let valid = [true; AXES];
+        let run = |offset: fn(usize) -> f64| {
+            let mut delay_loop = DefaultDelayLoop::<T>::new(config).unwrap();
+            let tau = delay_loop.delay_s();
+            for k in 0..200 {
+                let z = [tau + T::lit(offset(k)); AXES];
+                delay_loop.match_innovations(dt, q, &z, &valid, &r);
+            }
+            (
+                delay_loop.bias2().sqrt().as_f64(),
+                delay_loop.delay_std_s().as_f64(),
+            )
+        };
+        let (bias, std) = run(|_| 0.02);
+        assert!((bias - 0.02).abs() < 1e-4, "{bias}");
+        assert!(std >= 0.02, "{std}");
+        let (bias, std) = run(|k| if k % 2 == 0 { 0.02 } else { -0.02 });
+        assert!(bias < 1e-6, "{bias}");
+        assert!(std < 0.011, "{std}");
+    }
+
+    tests_in_both_precisions!(
+        match_starts_as_a_mean,
+        bias_watch_counts_a_persistent_offset
+    );
 }

@@ -60,14 +60,18 @@ pub enum DelayStatus<T: Scalar> {
     /// Locked: the gain fusion refines the estimate (it holds it when the
     /// motion stops).
     Locked,
-    /// For [`DelayLoopConfig::out_of_range_after_s`](crate::delay::DelayLoopConfig::out_of_range_after_s), the correlation of every
-    /// moving axis peaked at the smallest delay of the range: the delay is
-    /// below `edge_s`. The estimate is not moved there.
+    /// For at least [`DelayLoopConfig::out_of_range_after_s`](crate::delay::DelayLoopConfig::out_of_range_after_s),
+    /// the windows whose moving axes correlate (peak at least 0.5) have
+    /// peaked at the smallest delay of the range in a running share of at
+    /// least 0.5 (time constant 5 s; `docs/delay.md`, "Range and status"):
+    /// the delay is below `edge_s`. The estimate is not moved there.
     BelowRange {
         /// The range's lower edge, s.
         edge_s: T,
         /// The largest peak value (normalized correlation) seen at the edge.
         peak: T,
+        /// The running share of the voting windows that peaked at this edge, `[0, 1]`.
+        share: T,
     },
     /// As [`DelayStatus::BelowRange`], at the largest delay of the range.
     AboveRange {
@@ -75,6 +79,8 @@ pub enum DelayStatus<T: Scalar> {
         edge_s: T,
         /// The largest peak value (normalized correlation) seen at the edge.
         peak: T,
+        /// The running share of the voting windows that peaked at this edge, `[0, 1]`.
+        share: T,
     },
 }
 
@@ -100,17 +106,27 @@ impl<T: Scalar> core::fmt::Display for DelayStatus<T> {
             Self::WaitingForMotion => f.write_str("waiting for motion"),
             Self::Acquiring => f.write_str("acquiring"),
             Self::Locked => f.write_str("locked"),
-            Self::BelowRange { edge_s, peak } => write!(
+            Self::BelowRange {
+                edge_s,
+                peak,
+                share,
+            } => write!(
                 f,
-                "below the range (edge {:.3} s, peak {:.2})",
+                "below the range (edge {:.3} s, peak {:.2}, share {:.2})",
                 edge_s.as_f64(),
-                peak.as_f64()
+                peak.as_f64(),
+                share.as_f64()
             ),
-            Self::AboveRange { edge_s, peak } => write!(
+            Self::AboveRange {
+                edge_s,
+                peak,
+                share,
+            } => write!(
                 f,
-                "above the range (edge {:.3} s, peak {:.2})",
+                "above the range (edge {:.3} s, peak {:.2}, share {:.2})",
                 edge_s.as_f64(),
-                peak.as_f64()
+                peak.as_f64(),
+                share.as_f64()
             ),
         }
     }

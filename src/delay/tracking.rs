@@ -50,12 +50,30 @@ pub(super) fn drop_inconsistent_axes<T: Scalar>(
     }
 }
 
-/// Peaks of moving axes sitting on one edge of the shift window.
+/// Smallest correlation peak of a moving axis for its window to vote in the
+/// out-of-range watch (`DelayStatus::BelowRange`):
+/// the clean-input peak threshold; the validity threshold of the navigator's
+/// loop (0.9) missed the edge peaks of a weakly moving flight (0.887).
+pub const OUT_OF_RANGE_MIN_PEAK: f64 = 0.5;
+
+/// Share of the voting windows peaking on one edge at or above which the
+/// delay is reported beyond it.
+pub const OUT_OF_RANGE_SHARE: f64 = 0.5;
+
+/// Share below which an edge's run ends.
+pub const OUT_OF_RANGE_SHARE_END: f64 = 0.1;
+
+/// Time constant of the running share of the votes, s (one buffer).
+pub const OUT_OF_RANGE_SHARE_TIME_S: f64 = 5.0;
+
+/// Windows of moving axes voting for one edge of the shift window.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct EdgeRun<T: Scalar> {
     pub(super) since_us: u64,
     pub(super) below: bool,
     pub(super) peak: T,
+    /// Running share of the votes for this edge.
+    pub(super) share: T,
 }
 
 impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
@@ -109,50 +127,76 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         gains
     }
 
-    /// Follows the peaks of the axes that move (IMU variance above the
-    /// threshold, peak value above `min_peak`) but are not valid because
-    /// they sit on an edge of the shift window: when no axis is valid and
-    /// all such axes sit on the same edge, the run continues.
+    /// The out-of-range watch: each window whose moving axes (IMU variance
+    /// above the threshold) correlate at least [`OUT_OF_RANGE_MIN_PEAK`]
+    /// votes for an edge when all those axes peak on it, for the inside when
+    /// one peaks inside (or an axis is valid), and not at all otherwise
+    /// (mixed edges, nothing moving). The run of an edge carries the running
+    /// share of the votes for it (time constant
+    /// [`OUT_OF_RANGE_SHARE_TIME_S`], `dt_s` the time since the last update);
+    /// it ends when that share falls below [`OUT_OF_RANGE_SHARE_END`].
     pub(super) fn track_edges(
         &mut self,
         t_us: u64,
+        dt_s: T,
         peaks: &[AxisPeak<T>; AXES],
         valid: &[bool; AXES],
     ) {
         let lower_edge = T::lit(self.shift_min as f64);
-        let (mut below, mut above, mut peak) = (0usize, 0usize, T::zero());
+        let (mut below, mut above, mut inside, mut peak) = (0usize, 0usize, 0usize, T::zero());
         for p in peaks.iter().filter(|p| {
-            !p.interior
-                && p.peak >= self.config.min_peak
+            p.peak >= T::lit(OUT_OF_RANGE_MIN_PEAK)
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4
         }) {
-            if p.shift_samples <= lower_edge {
+            if p.interior {
+                inside += 1;
+            } else if p.shift_samples <= lower_edge {
                 below += 1;
+                peak = peak.max(p.peak);
             } else {
                 above += 1;
+                peak = peak.max(p.peak);
             }
-            peak = peak.max(p.peak);
         }
-        let edge_below = match (valid.iter().any(|&v| v), below, above) {
+        let vote = match (valid.iter().any(|&v| v) || inside > 0, below, above) {
+            (true, ..) => None,
             (false, b, 0) if b > 0 => Some(true),
             (false, 0, a) if a > 0 => Some(false),
-            (true, ..) => None,
-            // Mixed edges, or nothing moving: keep the run as it is.
+            // Mixed edges, or nothing moving: no vote.
             _ => return,
         };
-        self.edge = match (edge_below, self.edge.get()) {
-            (None, _) => None,
+        let alpha = (dt_s / T::lit(OUT_OF_RANGE_SHARE_TIME_S)).min(T::one());
+        self.edge = match (vote, self.edge.get()) {
             (Some(b), Some(run)) if run.below == b => Some(EdgeRun {
                 peak: run.peak.max(peak),
+                share: run.share + alpha * (T::one() - run.share),
                 ..run
             }),
             (Some(b), _) => Some(EdgeRun {
                 since_us: t_us,
                 below: b,
                 peak,
+                share: alpha,
             }),
+            (None, Some(run)) => Some(EdgeRun {
+                share: run.share - alpha * run.share,
+                ..run
+            })
+            .filter(|run| run.share >= T::lit(OUT_OF_RANGE_SHARE_END)),
+            (None, None) => None,
         }
         .into();
+    }
+
+    /// The edge the delay is reported beyond, with its run: the run's share
+    /// of the votes at least [`OUT_OF_RANGE_SHARE`], for at least
+    /// [`DelayLoopConfig::out_of_range_after_s`](super::DelayLoopConfig::out_of_range_after_s).
+    pub(super) fn out_of_range(&self, t_us: u64) -> Option<EdgeRun<T>> {
+        self.edge.get().filter(|run| {
+            run.share >= T::lit(OUT_OF_RANGE_SHARE)
+                && T::lit(t_us.saturating_sub(run.since_us) as f64 * 1e-6)
+                    >= self.config.out_of_range_after_s
+        })
     }
 
     /// Re-acquisition (see [`DelayLoopConfig::reacquire_sigma`]): restarts the
@@ -204,6 +248,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             .reset(z_sum / n, (r_sum / (n * n)).sqrt())
             .is_ok();
         if restarted {
+            self.bias_mean = T::zero();
+            self.bias_spread = T::zero();
             self.locked = false;
             self.following = true;
             self.stable_since_us = None;
