@@ -457,3 +457,62 @@ fn a_magnetic_disturbance_is_refused_and_counted() {
     assert!(refused >= 450, "{refused} refused");
     assert!(h.heading_valid);
 }
+
+/// The mode of each of the first `n` magnetometer samples fused after
+/// initialization, with the tilt standard deviation before it, on a hover,
+/// the filter started with the tilt standard deviation `tilt_std_rad`.
+fn first_modes<T: Scalar>(n: usize, tilt_std_rad: f64) -> (Vec<(MagMode, f64)>, f64) {
+    let sim = hover(no_delay(Scenario::Low, 5, 3.0));
+    let filter = Ekf16Config {
+        initial_tilt_std_rad: T::lit(tilt_std_rad),
+        ..table3_filter::<T>(&sim)
+    };
+    let mut nav = Ekf16::new(filter).expect("valid filter config");
+    let mut modes = Vec::new();
+    for event in Simulation::new(sim).expect("valid sim config") {
+        match event {
+            SimEvent::Imu { sample, .. } => {
+                nav.push_imu(&imu_sample::<T>(&sample))
+                    .expect("plausible IMU sample");
+            }
+            SimEvent::Mag(m) if nav.is_initialized() && modes.len() < n => {
+                let tilt_std = nav.tilt_std().as_f64();
+                if let Ok(MagOutcome::Fused(_)) = nav.push_mag(&mag_sample::<T>(&m)) {
+                    modes.push((nav.mag_modes().mode, tilt_std));
+                }
+            }
+            SimEvent::Mag(m) => {
+                let _ = nav.push_mag(&mag_sample::<T>(&m));
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = nav.push_gps(&gps_fix::<T>(&fix));
+            }
+        }
+    }
+    (modes, delaynav::ekf16::MAG_INFLIGHT_TILT_STD_RAD)
+}
+
+/// While the tilt is uncertain as after a start in motion (its standard
+/// deviation above `MAG_INFLIGHT_TILT_STD_RAD`) a consistent sample is fused
+/// 3-axis at once, without the 1 s clean hold: the field levels an aligning
+/// filter (docs/math.md, "In-flight alignment"). A start at rest (0.1 rad)
+/// keeps the hold: heading-only first.
+fn an_aligning_filter_fuses_the_three_axis_field<T: Scalar>() {
+    let (modes, inflight_std) = first_modes::<T>(3, 0.35);
+    assert_eq!(modes.len(), 3, "{modes:?}");
+    let (mode, tilt_std) = modes[0];
+    assert!(tilt_std > inflight_std, "{tilt_std} rad: not aligning");
+    assert_eq!(mode, MagMode::ThreeAxis, "{modes:?}");
+    let (modes, _) = first_modes::<T>(1, 0.1);
+    assert_eq!(modes[0].0, MagMode::HeadingOnly, "{modes:?}");
+}
+
+#[test]
+fn an_aligning_filter_fuses_the_three_axis_field_f32() {
+    an_aligning_filter_fuses_the_three_axis_field::<f32>();
+}
+
+#[test]
+fn an_aligning_filter_fuses_the_three_axis_field_f64() {
+    an_aligning_filter_fuses_the_three_axis_field::<f64>();
+}

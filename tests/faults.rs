@@ -269,7 +269,7 @@ fn suite() -> Vec<FaultResult> {
 }
 
 /// The rows that fail today (`.ci/run`'s `--known-failures` of the fault suite).
-const KNOWN_FAILURES: [&str; 2] = ["hard_iron", "inflight_tilt_5s"];
+const KNOWN_FAILURES: [&str; 1] = ["hard_iron"];
 
 /// Every row of issue 10 passes on the issue's 60 s runs (whole windows: see
 /// `the_rows_windows_are_the_issue_s`), with the navigator and start of `reproduce --faults`.
@@ -303,8 +303,8 @@ fn every_row_of_the_suite_passes_at_full_scale() {
         eprintln!("{} {:.3} {:?} {}", r.name, r.measured, r.note, r.passed);
         assert!(!r.criterion.is_empty());
     }
-    // The known failures of `.ci/run` (the faster in-flight alignment is not done): they
-    // still fail; when one passes, it leaves both lists.
+    // The known failures of `.ci/run` (no hard-iron estimation): they still fail; when one
+    // passes, it leaves both lists.
     let failed: Vec<&str> = results
         .iter()
         .filter(|r| !r.passed)

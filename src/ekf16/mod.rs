@@ -109,8 +109,9 @@ use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
 use nav_core::NavCore;
 pub use nav_core::{
-    GpsBlock, MAG_GAP_US, MAG_THREE_AXIS_HOLD_US, MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD,
-    MAX_GAP_NOISE_US, MAX_TIME_JUMP_US,
+    GpsBlock, MAG_ALIGNING_INCLINATION_RATE, MAG_GAP_US, MAG_INFLIGHT_TILT_STD_RAD,
+    MAG_THREE_AXIS_HOLD_US, MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD, MAX_GAP_NOISE_US,
+    MAX_TIME_JUMP_US,
 };
 use state::{NAV_STATES, StateCovariance, StateVector};
 

@@ -9,8 +9,14 @@
 //!   as disturbed.
 //! - **3-axis** (`mag_three_axis`): the field has been clean for
 //!   [`MAG_THREE_AXIS_HOLD_US`] (never two samples in a row disturbed or
-//!   gated out) and the inclination learned at initialization is within
-//!   [`MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD`] of the configured one.
+//!   gated out) and the learned inclination is within
+//!   [`MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD`] of the configured one;
+//!   or, whatever the hold and the inclination, while the filter is
+//!   aligning in motion (its tilt standard deviation above
+//!   [`MAG_INFLIGHT_TILT_STD_RAD`]): the configured field is then a second
+//!   reference direction beside gravity, which levels a filter started in
+//!   flight within seconds (the inclination learned at such a start was
+//!   seen through the unlevelled attitude and says nothing yet).
 //! - **heading only** otherwise.
 //!
 //! A second sample in a row disturbed or gated out restarts the clean time:
@@ -75,8 +81,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !consistent {
             MagMode::NoFusion
         } else if c.mag_three_axis
-            && inclination_agrees
-            && self.mag_clean_us >= MAG_THREE_AXIS_HOLD_US
+            && ((inclination_agrees && self.mag_clean_us >= MAG_THREE_AXIS_HOLD_US)
+                || self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD))
         {
             MagMode::ThreeAxis
         } else {
@@ -226,11 +232,21 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// Moves the learned field toward an accepted sample's norm and
     /// inclination by `mag_field_learning_rate` (an exponential mean).
+    /// While the tilt standard deviation is above [`MAG_INFLIGHT_TILT_STD_RAD`]
+    /// (an alignment in motion), the inclination follows the samples with
+    /// the weight [`MAG_ALIGNING_INCLINATION_RATE`] at least: each is seen
+    /// through an attitude being levelled, and the one learned at the start
+    /// (through the accelerometer's tilt) says nothing.
     pub(super) fn learn_mag_field(&mut self, sample: (T, T)) {
         let w = self.config.mag_field_learning_rate;
+        let wi = if self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD) {
+            w.max(T::lit(MAG_ALIGNING_INCLINATION_RATE))
+        } else {
+            w
+        };
         self.mag_field = Some(match self.mag_field {
             None => sample,
-            Some((n, i)) => (n + (sample.0 - n) * w, i + (sample.1 - i) * w),
+            Some((n, i)) => (n + (sample.0 - n) * w, i + (sample.1 - i) * wi),
         });
     }
 }

@@ -102,6 +102,17 @@ pub const MAG_THREE_AXIS_HOLD_US: u32 = 1_000_000;
 /// update pulls the tilt toward the configured field, so it is used only
 /// when the two agree.
 pub const MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD: f64 = 0.15;
+/// Tilt standard deviation above which the filter is aligning in motion, rad
+/// (8.6 deg: above the default `initial_tilt_std_rad` of a start at rest,
+/// 0.1 rad, below the 0.35 rad the navigator sets for a start in motion):
+/// the magnetometer is then fused as the 3-axis field whatever its clean
+/// time and learned inclination, and the inclination is learned at
+/// [`MAG_ALIGNING_INCLINATION_RATE`] at least.
+pub const MAG_INFLIGHT_TILT_STD_RAD: f64 = 0.15;
+/// Least weight of one accepted sample in the learned inclination while the
+/// filter aligns in motion (tilt standard deviation above
+/// [`MAG_INFLIGHT_TILT_STD_RAD`]): 20 samples, 0.2 s at 100 Hz.
+pub const MAG_ALIGNING_INCLINATION_RATE: f64 = 0.05;
 /// Interval between magnetometer samples beyond which the time counts as
 /// [`MagMode::NoFusion`](super::MagMode::NoFusion), µs.
 pub const MAG_GAP_US: u64 = 1_000_000;
