@@ -65,10 +65,6 @@ pub const PV_SMOOTHING: f64 = 0.05;
 pub const PV_BASELINE_RATE: f64 = 1.0 / 300.0;
 /// Longest interval between fixes the track integrates the velocity over, µs.
 pub const PV_MAX_GAP_US: u64 = 1_000_000;
-/// Time constant of the tilt's memory in the heading level, s: a magnetometer heading fused
-/// through a wrong tilt keeps the error after the tilt is right, until the magnetometer has
-/// corrected it.
-pub const HEADING_TILT_MEMORY_S: f64 = 20.0;
 /// Fused position blocks after which the track's anchor counts as confirmed.
 pub const PV_CONFIRM_FIXES: u16 = 50;
 
@@ -87,8 +83,6 @@ pub(crate) struct PvMonitor<T: Scalar> {
     confirmed: u16,
     /// Whether the track is anchored.
     anchored: bool,
-    /// The tilt's standard deviation remembered for the heading level, rad (module docs).
-    tilt_memory_rad: T,
 }
 
 impl<T: Scalar> PvMonitor<T> {
@@ -100,7 +94,6 @@ impl<T: Scalar> PvMonitor<T> {
         t_us: 0,
         confirmed: 0,
         anchored: false,
-        tilt_memory_rad: T::ZERO,
     };
 
     /// The horizontal norm and the down component's magnitude of the offset, m.
@@ -116,23 +109,8 @@ impl<T: Scalar> PvMonitor<T> {
             velocity: m.velocity_ned_m_s,
             t_us: m.t_us,
             anchored: true,
-            tilt_memory_rad: self.tilt_memory_rad,
             ..Self::EMPTY
         };
-    }
-
-    /// Remembers the tilt's standard deviation `tilt_std_rad` at the fix at `t_us`: the
-    /// larger of it and the memory decayed over the time since the last fix
-    /// (`exp(-dt / HEADING_TILT_MEMORY_S)`, to first order, at most one fix's worth).
-    fn remember_tilt(&mut self, tilt_std_rad: T, t_us: u64) {
-        let dt: T = us_to_s(t_us.saturating_sub(self.t_us));
-        let keep = (T::one() - dt / T::lit(HEADING_TILT_MEMORY_S)).max(T::zero());
-        self.tilt_memory_rad = tilt_std_rad.max(self.tilt_memory_rad * keep);
-    }
-
-    /// The remembered tilt standard deviation, rad.
-    pub(crate) fn tilt_memory_rad(&self) -> T {
-        self.tilt_memory_rad
     }
 
     /// One fix `m` after its fusion: whether its position block was fused, whether the
@@ -254,13 +232,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// The heading's standard deviation from the tilt once a magnetometer update was fused,
-    /// rad: `|tan I|` of the configured inclination times the larger of the tilt's standard
-    /// deviation and its memory ([`HEADING_TILT_MEMORY_S`]); 0 before
-    /// (`ProtectionLevels::with_heading_tilt_coupling`).
+    /// rad: `|tan I|` of the configured inclination times the tilt's standard deviation; 0
+    /// before (`ProtectionLevels::with_heading_tilt_coupling`).
     pub(crate) fn heading_tilt_coupling(&self) -> T {
         if self.mag_fused_us.is_some() {
-            let tilt = self.tilt_std().max(self.pv.tilt_memory_rad());
-            self.config.mag_inclination_rad.tan().abs() * tilt
+            self.config.mag_inclination_rad.tan().abs() * self.tilt_std()
         } else {
             T::zero()
         }
@@ -280,8 +256,6 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         position_reset: bool,
     ) {
         let risk = self.config.integrity.risk;
-        let tilt = self.tilt_std();
-        self.pv.remember_tilt(tilt, m.t_us);
         if self.pv.update(m, position_fused, position_reset, risk) {
             self.refusals.gps_position_inconsistent =
                 self.refusals.gps_position_inconsistent.saturating_add(1);
