@@ -262,6 +262,33 @@ impl<T: Scalar> ProtectionLevels<T> {
     }
 }
 
+impl<T: Scalar> ProtectionLevels<T> {
+    /// The levels with `(horizontal, vertical)` m added to the horizontal and vertical ones:
+    /// an error the fixes themselves show (the position-against-velocity check's offset).
+    pub fn with_position_bias(self, (horizontal, vertical): (T, T)) -> Self {
+        Self {
+            horizontal_m: self.horizontal_m + horizontal,
+            vertical_m: self.vertical_m + vertical,
+            ..self
+        }
+    }
+}
+
+impl<T: Scalar> ProtectionLevels<T> {
+    /// The heading level with the tilt's share of a magnetometer heading: a tilt error `e`
+    /// turns the field's horizontal projection by up to `tan(I) e` (`I` the field's
+    /// inclination), so the heading's variance gains `s^2`, `s = |tan I|` times the tilt's
+    /// standard deviation (rad, `heading_std_rad`): `h' = sqrt(h^2 + (k1 s)^2)` (degrees).
+    pub fn with_heading_tilt_coupling(self, heading_std_rad: T, risk: T) -> Self {
+        let (k1, _, _) = protection_factors(risk);
+        let share = k1 * heading_std_rad * T::lit(180.0 / core::f64::consts::PI);
+        Self {
+            heading_deg: (self.heading_deg * self.heading_deg + share * share).sqrt(),
+            ..self
+        }
+    }
+}
+
 /// What an estimator vouches for, through the [`Navigator`](crate::Navigator) trait: its
 /// protection levels and, per quantity, whether it is valid (`PL <= alert limit` and the
 /// estimator's own preconditions), and the resets it made or divergences it reported.
@@ -367,6 +394,14 @@ mod tests {
             ..config
         };
         assert!(!Integrity::judged(l, &tight, true).horizontal_valid);
+        // The fixes' offset adds to the position levels; the tilt's share to the heading's.
+        let b = l.with_position_bias((T::lit(20.0), T::lit(1.0)));
+        assert!(close(b.horizontal_m, 2.0 * 3.7169 + 20.0), "{b:?}");
+        assert!(close(b.vertical_m, 3.0 * 3.2905 + 1.0), "{b:?}");
+        assert!(!Integrity::judged(b, &config, true).horizontal_valid);
+        let c = l.with_heading_tilt_coupling(T::lit(2f64.to_radians()), T::lit(1e-3));
+        assert!(close(c.heading_deg, 8f64.sqrt() * 3.2905), "{c:?}");
+        assert_eq!(c.tilt_deg, l.tilt_deg);
     }
 
     fn a_bad_configuration_is_refused<T: Scalar>() {

@@ -369,6 +369,7 @@ fn ekf_sum(c: &FilterRefusals) -> u64 {
             gps_position_resets,
             gps_velocity_resets,
             gps_divergence_resets,
+            gps_position_inconsistent,
         }
     )
 }

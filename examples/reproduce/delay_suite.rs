@@ -37,7 +37,7 @@ pub struct DelayFlags {
     /// three RMSEs from 20 s printed).
     #[arg(long)]
     compare_accel: bool,
-    /// With --delay-suite: only these rows (comma-separated names) [default: all].
+    /// With --delay-suite or --integrity: only these rows (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',', value_name = "ROW,...")]
     rows: Option<Vec<String>>,
     /// With --delay-suite or --delay-trace: the drift-rate state of the `proposed` navigator's
@@ -95,6 +95,11 @@ impl DelayFlags {
     /// `--delay-trace`: the row to trace.
     pub fn trace_row(&self) -> Option<&str> {
         self.delay_trace.as_deref()
+    }
+
+    /// `--rows`: only these rows.
+    pub fn rows(&self) -> Option<&[String]> {
+        self.rows.as_deref()
     }
 }
 

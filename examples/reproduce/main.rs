@@ -151,6 +151,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         let mut options = IntegrityOptions {
             seeds: (args.seed..args.seed + seeds).collect(),
             scale: args.duration.unwrap_or(60.0) / 60.0,
+            rows: args.delay_flags.rows().map(<[String]>::to_vec),
             ..IntegrityOptions::default()
         };
         if let Some(threads) = args.threads {

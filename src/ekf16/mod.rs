@@ -210,6 +210,9 @@ pub struct FilterRefusals {
     /// Of the two reset counts above, the resets caused by a divergence: the
     /// block's mean NIS over `gps_nis_window` fixes above `gps_nis_bound`.
     pub gps_divergence_resets: u32,
+    /// GPS fixes whose position was beyond its tolerance from the integrated GPS velocity
+    /// (the position-against-velocity check: the position levels raised by the offset).
+    pub gps_position_inconsistent: u32,
 }
 
 impl FilterRefusals {
@@ -233,6 +236,7 @@ impl FilterRefusals {
         gps_position_resets: 0,
         gps_velocity_resets: 0,
         gps_divergence_resets: 0,
+        gps_position_inconsistent: 0,
     };
 
     /// Field-wise sum (saturating): the counters of a filter that replaced
@@ -271,6 +275,9 @@ impl FilterRefusals {
             gps_divergence_resets: self
                 .gps_divergence_resets
                 .saturating_add(other.gps_divergence_resets),
+            gps_position_inconsistent: self
+                .gps_position_inconsistent
+                .saturating_add(other.gps_position_inconsistent),
         }
     }
 }
@@ -507,6 +514,19 @@ impl<T: Scalar> Ekf16<T> {
     /// (`src/ekf16/nav_core/integrity.rs`).
     pub(crate) fn nis_inflation(&self) -> (T, T) {
         self.core.nis_inflation()
+    }
+
+    /// The position-against-velocity check's offset `(horizontal, vertical)`, m, what the
+    /// position levels are raised by (`src/ekf16/nav_core/integrity.rs`).
+    pub(crate) fn position_velocity_bias(&self) -> (T, T) {
+        self.core.position_velocity_bias()
+    }
+
+    /// The heading's standard deviation from the tilt once a magnetometer update was fused,
+    /// rad, else 0: the tilt's share of the heading level
+    /// (`ProtectionLevels::with_heading_tilt_coupling`).
+    pub(crate) fn heading_tilt_coupling(&self) -> T {
+        self.core.heading_tilt_coupling()
     }
 }
 

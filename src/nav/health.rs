@@ -7,7 +7,9 @@
 //! - **validity per quantity.** Tilt and heading need the alignment done
 //!   ([`AlignmentState::Aligned`]); heading also a magnetometer update fused
 //!   at the horizon within [`HEADING_STALE_US`]. Velocity and position need a
-//!   GPS fusion within [`GPS_STALE_US`] of the horizon and a standard
+//!   fix with their own block (velocity, position) fused within [`GPS_STALE_US`]
+//!   of the horizon (a fix whose position block was refused does not make
+//!   position valid) and a standard
 //!   deviation (square root of the horizon EKF's covariance, NED axes) below
 //!   [`MAX_VELOCITY_STD_M_S`] / [`MAX_POSITION_STD_M`]. The delay is valid
 //!   in fixed mode, and in estimated mode once one loop update had a valid
@@ -24,11 +26,14 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
-use crate::ekf16::state::{POS, VEL};
-use crate::ekf16::{GpsReset, MagModeHealth};
+use crate::ekf16::state::{POS, QUAT, VEL};
+use crate::ekf16::{GpsBlock, GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
-use crate::integrity::{Integrity, ProtectionLevels, protection_factors};
-use crate::scalar::Scalar;
+use crate::integrity::{
+    Integrity, ProtectionLevels, attitude_error_covariance, protection_factors,
+};
+use crate::scalar::{Scalar, us_to_s};
+use nalgebra::Vector3;
 
 /// Longest time since the last fused GPS fix for velocity and position to
 /// count as valid, µs.
@@ -160,7 +165,15 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             .max(T::zero())
             .sqrt();
         let velocity_std = std(VEL).max(std(VEL + 1)).max(std(VEL + 2));
-        let gps_recent = recent(self.ekf.last_gps_fused_us(), GPS_STALE_US);
+        // Per block: a fix whose position block was refused does not make position valid.
+        let position_recent = recent(
+            self.ekf.last_gps_block_fused_us(GpsBlock::Position),
+            GPS_STALE_US,
+        );
+        let velocity_recent = recent(
+            self.ekf.last_gps_block_fused_us(GpsBlock::Velocity),
+            GPS_STALE_US,
+        );
         let mag_fused = self.ekf.last_mag_fused_us();
         let estimated = self.is_estimating();
         let levels = self.protection_levels();
@@ -172,12 +185,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             tilt_valid: judged.tilt_valid,
             heading_valid: judged.heading_valid && recent(mag_fused, HEADING_STALE_US),
             velocity_valid: judged.velocity_valid
-                && gps_recent
+                && velocity_recent
                 && velocity_std <= T::lit(MAX_VELOCITY_STD_M_S),
             position_valid: judged.horizontal_valid
-                && gps_recent
+                && position_recent
                 && horizontal_std <= T::lit(MAX_POSITION_STD_M),
-            vertical_valid: judged.vertical_valid && gps_recent,
+            vertical_valid: judged.vertical_valid && position_recent,
             delay_valid: levels.delay_s <= limits.delay_alert_limit_s
                 && (!estimated
                     || (self.valid_delay_updates > 0
@@ -204,7 +217,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// `v v^T s_tau^2` and `a a^T s_tau^2` added to the NED blocks); the delay's own level
     /// from `s_tau` (0 in fixed mode: the given delay is taken as exact); inflated by the
     /// horizon filter's innovation monitor (`src/ekf16/nav_core/integrity.rs`). The others are
-    /// unbounded before the horizon filter is initialized.
+    /// unbounded before the horizon filter is initialized. Then the horizon's attitude error
+    /// carried over the span `D` to the present (`D^2 [f x] C [f x]^T` added to the velocity
+    /// block, `D^4 / 4` times it to the position block, `C` the attitude error's covariance,
+    /// `f` the present's specific force, NED), the position-against-velocity check's offset
+    /// added to the position levels, and the tilt's share of the magnetometer's heading
+    /// (docs/integrity.md).
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -218,15 +236,33 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let v = present.velocity_ned_m_s * s;
         let a = self.present_accel * s;
         let (position, velocity) = self.ekf.nis_inflation();
+        // The horizon's attitude error carried over the span to the present: a rotation error
+        // `e` (NED, rad) turns the specific force `f`, `dv = -[f x] e span`,
+        // `dr = -[f x] e span^2 / 2`.
+        let p = self.ekf.covariance();
+        let att = attitude_error_covariance(
+            horizon.attitude.quaternion(),
+            &p.fixed_view::<4, 4>(QUAT, QUAT).into_owned(),
+        );
+        let span: T = us_to_s(present.t_us.saturating_sub(horizon.t_us));
+        let gravity = Vector3::new(T::zero(), T::zero(), self.config.ekf.gravity_m_s2);
+        let f = (self.present_accel - gravity).cross_matrix();
+        let turned = f * att * f.transpose() * (span * span);
+        let quarter = span * span * T::lit(0.25);
         ProtectionLevels::from_covariance(
             &present.attitude,
-            self.ekf.covariance(),
+            p,
             self.config.ekf.integrity.risk,
-            &(v * v.transpose()),
-            &(a * a.transpose()),
+            &(v * v.transpose() + turned * quarter),
+            &(a * a.transpose() + turned),
             Some(s),
         )
         .inflated(position, velocity)
+        .with_position_bias(self.ekf.position_velocity_bias())
+        .with_heading_tilt_coupling(
+            self.ekf.heading_tilt_coupling(),
+            self.config.ekf.integrity.risk,
+        )
     }
 
     /// The present estimate with its [`Health`] (`None` until aligned).

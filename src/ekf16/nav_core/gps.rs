@@ -62,6 +62,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_accepted_us = [Some(fix.t_us); 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
+        self.monitor_position_velocity(&m, true, false);
         self.gps_clock_us = Some(fix.t_us);
         self.frame = frame;
         Ok(GpsStep::Initialized)
@@ -152,6 +153,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         )?;
         after_fusion(self);
         self.record_gps(position, velocity);
+        let mut position_reset = false;
         for (block, record, gate) in [
             (GpsBlock::Position, &position, self.config.gps_position_gate),
             (GpsBlock::Velocity, &velocity, self.config.gps_velocity_gate),
@@ -160,8 +162,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 // Linearized again: the other block's fusion moved the state.
                 let (h, _, _) = model(self, block, &m);
                 self.reset_gps_block(block, &h, &m, cause);
+                position_reset |= block == GpsBlock::Position;
             }
         }
+        self.monitor_position_velocity(&m, position.fused, position_reset);
         Ok(GpsOutcome::Fused { position, velocity })
     }
 

@@ -11,13 +11,39 @@
 //! **The inflation.** Each block's levels are multiplied by `sqrt(max(1, mean / 3))`: the
 //! horizontal and vertical levels by the position block's, the velocity and tilt levels by the
 //! velocity block's (a tilt error shows in the velocity innovations first).
+//!
+//! **The position-against-velocity check** ([`PvMonitor`]). A GPS position that moves without
+//! its velocity (a slow drift, multipath, a step the filter resets to) is followed by the filter
+//! with a consistent covariance: its innovations cannot show it. The GPS's own velocity can.
+//! Per fix `k` (NED, m): a track integrates the fixes' velocities by the trapezoid,
+//! `r_k = r_{k-1} + (v_{k-1} + v_k) dt / 2`, and the raw inconsistency is `d_k = p_k - r_k`.
+//! Its smoothed value `o <- o + a (d_k - o)` ([`PV_SMOOTHING`] per fix whose position block was
+//! fused; a rejected position block teaches nothing; the fix a position block is reset to sets
+//! `o = d_k` at once) is the **offset**. While the offset is within its tolerance the track
+//! learns it (`r += b o`, `o -= b o`, `b = max(1 / n, PV_BASELINE_RATE)` at the `n`-th fused
+//! fix after the anchor: a running mean, then slow, [`PV_BASELINE_RATE`]; the anchor's noise
+//! and the integration's own random walk are absorbed, a drift barely); beyond it the track is held
+//! and the fix is counted (`FilterRefusals::gps_position_inconsistent`), so a lasting offset
+//! stays until the fixes come back to the track (or `reset()`). The tolerance is the 2-D level
+//! (`k2` at the integrity risk) of the offset's standard deviation without a fault,
+//! `s_o^2 = s_p^2 a / (2 - a) + s_v^2 dt^2 / b` (the smoothed white position noise `s_p`, the
+//! velocity noise `s_v` integrated over the `1 / b` fixes the track learns over), `s_p`, `s_v`
+//! the fix's noise (horizontal for the horizontal test, vertical with `k1` for the down axis).
+//! The horizontal level is raised by the horizontal norm of the offset, the vertical one by its
+//! down component: the part of the error the fixes themselves disagree about.
+//! A gap of more than [`PV_MAX_GAP_US`] between fixes re-anchors the track at the fix (the
+//! offset kept: what was found stays found; a step inside a GPS outage is not seen). A block
+//! reset before [`PV_CONFIRM_FIXES`] fused position blocks confirmed the anchor (the first fix
+//! was the glitch, not the later ones) re-anchors instead, with no offset.
 
+use super::GpsMeasurement;
 use super::NavCore;
 use crate::ekf16::state::{POS, QUAT, VEL};
 use crate::estimate::FusionRecord;
 use crate::integrity::{Integrity, ProtectionLevels};
 use crate::scalar::Scalar;
-use nalgebra::{Matrix3, UnitQuaternion};
+use crate::scalar::{us_to_s, zeros_const};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 /// Standard deviation of the unknown acceleration over an IMU gap, per NED axis, m/s^2.
 pub const GAP_ACCEL_STD_M_S2: f64 = 5.0;
@@ -31,6 +57,114 @@ pub const GAP_MAX_ATTITUDE_STD_RAD: f64 = 0.35;
 /// (beyond it the state is unknown anyway, and larger variances leave the range a later
 /// update can handle in `f32`).
 pub const GAP_MOTION_MAX_S: f64 = 10.0;
+
+/// Weight of each fused fix in the smoothed position-velocity offset (2 s at 10 Hz).
+pub const PV_SMOOTHING: f64 = 0.05;
+/// Smallest weight of a consistent fix in the track's learning of the offset (30 s at
+/// 10 Hz; `1 / n` for the `n`-th fused fix after the anchor until then: a running mean).
+pub const PV_BASELINE_RATE: f64 = 1.0 / 300.0;
+/// Longest interval between fixes the track integrates the velocity over, µs.
+pub const PV_MAX_GAP_US: u64 = 1_000_000;
+/// Fused position blocks after which the track's anchor counts as confirmed.
+pub const PV_CONFIRM_FIXES: u16 = 50;
+
+/// The GPS position-against-velocity consistency check (module docs). All zero: not anchored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PvMonitor<T: Scalar> {
+    /// The integrated velocity track, shifted by what it learned, NED m.
+    track: Vector3<T>,
+    /// The last fix's velocity, NED m/s.
+    velocity: Vector3<T>,
+    /// The smoothed offset of the fixes from the track, NED m.
+    offset: Vector3<T>,
+    /// Time of the last fix, µs.
+    t_us: u64,
+    /// Fused position blocks since the anchor (saturating).
+    confirmed: u16,
+    /// Whether the track is anchored.
+    anchored: bool,
+}
+
+impl<T: Scalar> PvMonitor<T> {
+    /// Not anchored.
+    pub(crate) const EMPTY: Self = Self {
+        track: zeros_const(),
+        velocity: zeros_const(),
+        offset: zeros_const(),
+        t_us: 0,
+        confirmed: 0,
+        anchored: false,
+    };
+
+    /// The horizontal norm and the down component's magnitude of the offset, m.
+    pub(crate) fn bias(&self) -> (T, T) {
+        let o = &self.offset;
+        ((o[0] * o[0] + o[1] * o[1]).sqrt(), o[2].abs())
+    }
+
+    /// Anchors the track at the fix `m` with no offset.
+    fn anchor(&mut self, m: &GpsMeasurement<T>) {
+        *self = Self {
+            track: m.position_ned_m,
+            velocity: m.velocity_ned_m_s,
+            t_us: m.t_us,
+            anchored: true,
+            ..Self::EMPTY
+        };
+    }
+
+    /// One fix `m` after its fusion: whether its position block was fused, whether the
+    /// position block was reset to it; `risk` the integrity risk. Returns whether the offset
+    /// is beyond its tolerance (module docs).
+    pub(crate) fn update(
+        &mut self,
+        m: &GpsMeasurement<T>,
+        position_fused: bool,
+        position_reset: bool,
+        risk: T,
+    ) -> bool {
+        let gap = m.t_us.saturating_sub(self.t_us);
+        if !self.anchored || gap > PV_MAX_GAP_US || m.t_us <= self.t_us {
+            let offset = self.offset;
+            self.anchor(m);
+            self.offset = offset;
+            self.track -= offset;
+            return false;
+        }
+        let dt: T = us_to_s(gap);
+        self.track += (self.velocity + m.velocity_ned_m_s) * (dt * T::lit(0.5));
+        self.velocity = m.velocity_ned_m_s;
+        self.t_us = m.t_us;
+        let d = m.position_ned_m - self.track;
+        if position_reset {
+            if self.confirmed < PV_CONFIRM_FIXES {
+                self.anchor(m);
+                return false;
+            }
+            self.offset = d;
+        } else if position_fused {
+            self.offset += (d - self.offset) * T::lit(PV_SMOOTHING);
+            self.confirmed = self.confirmed.saturating_add(1);
+        } else {
+            return false;
+        }
+        let (k1, k2, _) = crate::integrity::protection_factors(risk);
+        let a = T::lit(PV_SMOOTHING);
+        let b = T::lit(PV_BASELINE_RATE).max(T::one() / T::lit(f64::from(self.confirmed.max(1))));
+        let smoothing = a / (T::lit(2.0) - a);
+        let walk = m.velocity_noise[(0, 0)] * dt * dt / b;
+        let horizontal = k2 * (m.position_noise[(0, 0)] * smoothing + walk).sqrt();
+        let vertical = k1 * (m.position_noise[(2, 2)] * smoothing + walk).sqrt();
+        let (h, v) = self.bias();
+        let consistent = h <= horizontal && v <= vertical;
+        if consistent {
+            let learned = self.offset * b;
+            self.track += learned;
+            self.offset -= learned;
+        }
+        !consistent
+    }
+}
 
 /// Weight of each fix in the NIS means of the integrity monitor (module docs).
 pub(crate) const NIS_MEAN_WEIGHT: f64 = 0.1;
@@ -97,6 +231,37 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         block += tangent;
     }
 
+    /// The heading's standard deviation from the tilt once a magnetometer update was fused,
+    /// rad: `|tan I|` of the configured inclination times the tilt's standard deviation; 0
+    /// before (`ProtectionLevels::with_heading_tilt_coupling`).
+    pub(crate) fn heading_tilt_coupling(&self) -> T {
+        if self.mag_fused_us.is_some() {
+            self.config.mag_inclination_rad.tan().abs() * self.tilt_std()
+        } else {
+            T::zero()
+        }
+    }
+
+    /// The position-against-velocity check's offset: its horizontal norm and its down
+    /// component's magnitude, m (module docs), what the position levels are raised by.
+    pub(crate) fn position_velocity_bias(&self) -> (T, T) {
+        self.pv.bias()
+    }
+
+    /// The position-against-velocity check with one fused fix (module docs).
+    pub(super) fn monitor_position_velocity(
+        &mut self,
+        m: &GpsMeasurement<T>,
+        position_fused: bool,
+        position_reset: bool,
+    ) {
+        let risk = self.config.integrity.risk;
+        if self.pv.update(m, position_fused, position_reset, risk) {
+            self.refusals.gps_position_inconsistent =
+                self.refusals.gps_position_inconsistent.saturating_add(1);
+        }
+    }
+
     /// The inflation factors `(position, velocity)` of the monitor (module docs), at least 1.
     pub(crate) fn nis_inflation(&self) -> (T, T) {
         let factor = |mean: T| (mean / T::lit(3.0)).max(T::one()).sqrt();
@@ -117,11 +282,119 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let (position, velocity) = self.nis_inflation();
         let levels =
             ProtectionLevels::from_covariance(&q, &self.p, config.risk, &zero, &zero, delay_std_s)
-                .inflated(position, velocity);
+                .inflated(position, velocity)
+                .with_position_bias(self.pv.bias())
+                .with_heading_tilt_coupling(self.heading_tilt_coupling(), config.risk);
         let r = self.refusals;
         Integrity {
             resets: r.gps_position_resets.saturating_add(r.gps_velocity_resets),
             ..Integrity::judged(levels, config, true)
         }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fix at `t` s on a circle of radius 20 m at 0.5 rad/s (position and velocity
+    /// consistent), moved by `offset` m north, with the Table 3 noise variances as `R` and a
+    /// deterministic wobble of the position (0.5 m) standing in for its noise.
+    fn fix<T: Scalar>(t: f64, offset: f64) -> GpsMeasurement<T> {
+        let (s, c) = (0.5 * t).sin_cos();
+        let wobble = 0.5 * (7.3 * t).sin();
+        GpsMeasurement {
+            t_us: (t * 1e6).round() as u64,
+            position_ned_m: Vector3::new(
+                T::lit(20.0 * c + offset + wobble),
+                T::lit(20.0 * s - wobble),
+                T::lit(wobble),
+            ),
+            velocity_ned_m_s: Vector3::new(T::lit(-10.0 * s), T::lit(10.0 * c), T::zero()),
+            position_noise: Matrix3::identity() * T::lit(4.0),
+            velocity_noise: Matrix3::identity() * T::lit(0.1),
+        }
+    }
+
+    /// Runs fixes at 10 Hz over `[from, to)` s; returns the inconsistent fixes.
+    fn feed<T: Scalar>(
+        m: &mut PvMonitor<T>,
+        from: f64,
+        to: f64,
+        offset: impl Fn(f64) -> f64,
+        fused: impl Fn(f64) -> bool,
+    ) -> u32 {
+        let mut count = 0;
+        let mut k = (from * 10.0).round() as u64;
+        while (k as f64) < to * 10.0 {
+            let t = k as f64 / 10.0;
+            count += u32::from(m.update(&fix::<T>(t, offset(t)), fused(t), false, T::lit(1e-3)));
+            k += 1;
+        }
+        count
+    }
+
+    fn a_consistent_track_leaves_the_levels_alone<T: Scalar>() {
+        let mut m = PvMonitor::<T>::EMPTY;
+        let flagged = feed(&mut m, 0.0, 120.0, |_| 0.0, |_| true);
+        let (h, v) = m.bias();
+        assert_eq!(flagged, 0);
+        assert!(h.as_f64() < 0.5 && v.as_f64() < 0.5, "{h:?} {v:?}");
+    }
+
+    fn a_drift_and_a_step_show_in_the_offset<T: Scalar>() {
+        // 20 m north over 30 s from 30 s: the offset follows the drift (smoothed), the
+        // track does not learn it.
+        let drift = |t: f64| (t - 30.0).clamp(0.0, 30.0) * 20.0 / 30.0;
+        let mut m = PvMonitor::<T>::EMPTY;
+        feed(&mut m, 0.0, 30.0, drift, |_| true);
+        let flagged = feed(&mut m, 30.0, 60.0, drift, |_| true);
+        let (h, _) = m.bias();
+        assert!(h.as_f64() > 17.0 && h.as_f64() < 21.0, "{h:?}");
+        assert!(flagged > 200, "{flagged}");
+        // A 50 m step the filter rejects for 5 s, then resets its position block to: the
+        // rejected fixes teach nothing, the reset sets the offset at once.
+        let step = |t: f64| if t >= 30.0 { 50.0 } else { 0.0 };
+        let mut m = PvMonitor::<T>::EMPTY;
+        feed(&mut m, 0.0, 30.0, step, |_| true);
+        feed(&mut m, 30.0, 35.0, step, |_| false);
+        assert!(m.bias().0.as_f64() < 0.5);
+        m.update(&fix::<T>(35.0, 50.0), false, true, T::lit(1e-3));
+        let (h, _) = m.bias();
+        assert!((h.as_f64() - 50.0).abs() < 1.5, "{h:?}");
+        feed(&mut m, 35.1, 60.0, step, |_| true);
+        assert!((m.bias().0.as_f64() - 50.0).abs() < 1.5, "{:?}", m.bias());
+        // Back on the track, the offset goes.
+        feed(&mut m, 60.0, 80.0, |_| 0.0, |_| true);
+        assert!(m.bias().0.as_f64() < 1.0, "{:?}", m.bias());
+    }
+
+    fn a_reset_from_an_unconfirmed_anchor_anchors_again<T: Scalar>() {
+        // The first fix 1 km off (it initialized the filter), every later one rejected until
+        // the reset: the first fix was the glitch, no offset.
+        let mut m = PvMonitor::<T>::EMPTY;
+        m.update(&fix::<T>(0.0, 1000.0), true, false, T::lit(1e-3));
+        feed(&mut m, 0.1, 5.0, |_| 0.0, |_| false);
+        m.update(&fix::<T>(5.0, 0.0), false, true, T::lit(1e-3));
+        feed(&mut m, 5.1, 20.0, |_| 0.0, |_| true);
+        assert!(m.bias().0.as_f64() < 0.5, "{:?}", m.bias());
+    }
+
+    fn a_gap_anchors_again_and_keeps_the_offset<T: Scalar>() {
+        let step = |t: f64| if t >= 10.0 { 30.0 } else { 0.0 };
+        let mut m = PvMonitor::<T>::EMPTY;
+        feed(&mut m, 0.0, 30.0, step, |_| true);
+        let before = m.bias().0;
+        assert!(before.as_f64() > 28.0, "{before:?}");
+        // 20 s without a fix: the track is anchored again at the next one, the offset kept.
+        feed(&mut m, 50.0, 60.0, step, |_| true);
+        assert!((m.bias().0 - before).abs().as_f64() < 1.0, "{:?}", m.bias());
+    }
+
+    tests_in_both_precisions!(
+        a_consistent_track_leaves_the_levels_alone,
+        a_drift_and_a_step_show_in_the_offset,
+        a_reset_from_an_unconfirmed_anchor_anchors_again,
+        a_gap_anchors_again_and_keeps_the_offset
+    );
 }

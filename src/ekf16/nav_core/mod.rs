@@ -311,6 +311,12 @@ macro_rules! core_accessors {
             self.core.last_gps_fused_us()
         }
 
+        /// Time of the newest GPS fix with this block fused (or reset to the fix, or
+        /// initializing the filter), µs: what the validity of that block's quantity rests on.
+        pub fn last_gps_block_fused_us(&self, block: $crate::ekf16::GpsBlock) -> Option<u64> {
+            self.core.last_gps_block_fused_us(block)
+        }
+
         /// Time of the newest fused magnetometer sample, µs.
         pub fn last_mag_fused_us(&self) -> Option<u64> {
             self.core.last_mag_fused_us()
@@ -405,6 +411,8 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// Per GPS block: exponential mean (weight `NIS_MEAN_WEIGHT`) of the NIS of every fix,
     /// each at most the block's gate (the integrity monitor, `integrity.rs`).
     gps_nis_mean: [T; 2],
+    /// The GPS position-against-velocity consistency check (`integrity.rs`).
+    pv: integrity::PvMonitor<T>,
     last_gps_reset: ZeroOption<GpsReset>,
     /// Whether the fixes are geodetic (`Some(true)`) or NED, from the first.
     geodetic_fixes: ZeroOption<bool>,
@@ -470,6 +478,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
             gps_nis_mean: [T::ZERO; 2],
+            pv: integrity::PvMonitor::EMPTY,
             last_gps_reset: ZeroOption::None,
             geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
@@ -555,6 +564,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
+        self.pv = integrity::PvMonitor::EMPTY;
         self.last_gps_reset = ZeroOption::None;
         self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;
@@ -685,6 +695,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// Time of the newest fix with a GPS block fused, µs.
     pub(crate) fn last_gps_fused_us(&self) -> Option<u64> {
         self.gps_fused_us
+    }
+
+    /// Time of the newest fix with `block` fused, reset to it or initializing the filter, µs.
+    pub(crate) fn last_gps_block_fused_us(&self, block: GpsBlock) -> Option<u64> {
+        self.gps_accepted_us[block as usize].filter(|_| self.gps_fused_us.is_some())
     }
 
     /// Time of the newest fused magnetometer sample, µs.

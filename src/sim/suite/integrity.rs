@@ -83,6 +83,8 @@ pub struct IntegrityOptions {
     pub scale: f64,
     /// Runs at once [default: 2].
     pub threads: usize,
+    /// Only these rows, by name, and the runs they need (all when `None`).
+    pub rows: Option<Vec<String>>,
 }
 
 impl Default for IntegrityOptions {
@@ -92,6 +94,7 @@ impl Default for IntegrityOptions {
             scenarios: Scenario::ALL.to_vec(),
             scale: 1.0,
             threads: 2,
+            rows: None,
         }
     }
 }
@@ -144,6 +147,21 @@ struct Job {
 }
 
 impl Job {
+    /// Whether the row `row` needs this run.
+    fn feeds(&self, row: &str) -> bool {
+        match self.purpose {
+            Purpose::Fault(name) => row.strip_prefix("mi_") == Some(name),
+            Purpose::Clean => {
+                row == "mi_clean"
+                    || (self.estimator == Estimator::Proposed
+                        && ["availability_clean", "pl_tightness_tilt"].contains(&row))
+                    || row == format!("{}_future_stamp", self.estimator.name())
+            }
+            Purpose::FutureStamp => row == format!("{}_future_stamp", self.estimator.name()),
+            Purpose::Divergence => row == "ekf16_divergence_reported",
+        }
+    }
+
     fn name(&self) -> String {
         let what = match self.purpose {
             Purpose::Fault(name) => name,
@@ -516,7 +534,10 @@ pub fn run(
             .find(|(s, _)| *s == scenario)
             .map_or(super::setup::UNCALIBRATED_START, |(_, d)| *d)
     };
-    let jobs = jobs(options);
+    let mut jobs = jobs(options);
+    if let Some(only) = &options.rows {
+        jobs.retain(|j| only.iter().any(|row| j.feeds(row)));
+    }
     let steps = Steps::new(jobs.len(), progress);
     let skip_s = 10.0 * scale;
     let outcomes: Vec<RunOutcome> = parallel_map(&jobs, options.threads, |_, job| {
@@ -530,7 +551,10 @@ pub fn run(
     })
     .into_iter()
     .collect::<Result<_, SuiteError>>()?;
-    let rows = rows(&jobs, &outcomes);
+    let mut rows = rows(&jobs, &outcomes);
+    if let Some(only) = &options.rows {
+        rows.retain(|r| only.contains(&r.name));
+    }
     Ok(IntegrityResult {
         options: options.clone(),
         starts,
