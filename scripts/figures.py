@@ -616,6 +616,26 @@ TABLE7_CMD = [
 ]
 
 
+def replay_levels():
+    by = replay_doc("log171-log-derived.json")
+    pct = lambda x: "-" if x is None else f"{100 * x:.1f} %"
+    level = lambda l, digits: "inf" if l["median_level"] is None else f"{l['median_level']:.{digits}f}"
+    rows = []
+    for n in REPLAY_ORDER:
+        i = by[n]["integrity"]
+        rows.append([f"`{n}`", thousands(i["epochs"]), pct(i["availability"]),
+                     f"{level(i['tilt_deg'], 2)} / {pct(i['tilt_deg']['valid_share'])} / "
+                     f"{pct(i['tilt_deg']['exceeded_share'])}",
+                     f"{level(i['heading_deg'], 2)} / {pct(i['heading_deg']['valid_share'])} / "
+                     f"{pct(i['heading_deg']['exceeded_share'])}",
+                     f"{level(i['velocity_m_s'], 2)} / {pct(i['velocity_m_s']['valid_share'])} / "
+                     f"{pct(i['velocity_m_s']['exceeded_share'])}",
+                     f"{level(i['horizontal_m'], 2)} / {pct(i['horizontal_m']['valid_share'])}"])
+    return table(["estimator", "epochs", "all valid", "tilt: level deg / valid / exceeded",
+                  "heading: level deg / valid / exceeded", "velocity: level m/s / valid / exceeded",
+                  "horizontal: level m / valid"], rows)
+
+
 def replay_hand_tuned():
     rows = []
     for added in ["0", "0.3"]:
@@ -821,6 +841,7 @@ RENDERERS = {
     "tuning-log171-configs": tuning_configs,
     "replay-log171-no-flag": replay_no_flag,
     "replay-log171-hand-tuned": replay_hand_tuned,
+    "replay-log171-levels": replay_levels,
     "flight-log-table7": flight_log_table7,
     "flight-log-step": flight_log_step,
     "nav-memory": nav_memory,

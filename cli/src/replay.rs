@@ -228,7 +228,7 @@ pub fn main(args: &ReplayArgs) -> Result<(), Failure> {
     println!("{}", table_header());
     let report = run(opened, &args.estimator, &mut console)?;
     print!("{}", report.delay_steps());
-    print!("{}", report.health());
+    print!("{}{}", report.health(), report.integrity());
     if let Some(w) = console.estimates.as_mut() {
         w.flush()?;
     }

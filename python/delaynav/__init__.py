@@ -116,7 +116,11 @@ class Replay:
         fix; ``accel_bias_m_s2``, ``gyro_bias_rad_s`` (n, 3) body FRD;
         ``covariance_diagonal`` (n, 16); ``delay_s``, ``delay_std_s`` (n,)
         the GPS delay estimate and its standard deviation (NaN where the
-        estimator has none).
+        estimator has none); ``protection_levels`` (n, 6) and ``valid`` (n, 6)
+        the estimator's protection levels and validity flags at each estimate,
+        columns ``level_names`` (tilt_deg, heading_deg, horizontal_m,
+        vertical_m, velocity_m_s, delay_s; an infinite level vouches for
+        nothing).
         """
         name = name or self.estimators[0]
         if name not in self.traces:
@@ -162,6 +166,18 @@ class Replay:
         return self.trace()["delay_std_s"]
 
     @property
+    def protection_levels(self) -> np.ndarray:
+        """(n, 6) protection levels at each estimate: tilt and heading (deg),
+        horizontal and vertical position (m), velocity (m/s), delay (s)."""
+        return self.trace()["protection_levels"]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(n, 6) validity flags of the same six quantities (level within its
+        alert limit)."""
+        return self.trace()["valid"]
+
+    @property
     def health(self) -> dict[str, Any]:
         """The first estimator's health at the end of the replay (refusals,
         gates, resets, alignment, delay status), as in the summary."""
@@ -188,6 +204,10 @@ class Replay:
             columns[col] = t["attitude"][:, i]
         columns["delay_s"] = t["delay_s"]
         columns["delay_std_s"] = t["delay_std_s"]
+        for i, level in enumerate(t["level_names"]):
+            quantity = level.rsplit("_", 2 if level.endswith("_m_s") else 1)[0]
+            columns[f"pl_{level}"] = t["protection_levels"][:, i]
+            columns[f"{quantity}_valid"] = t["valid"][:, i]
         return pd.DataFrame(columns, index=pd.Index(t["time_s"], name="time_s"))
 
     def row(self) -> dict[str, Any]:

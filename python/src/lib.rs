@@ -13,6 +13,7 @@
 //! The library's errors are raised as the exceptions below with the
 //! library's messages.
 
+use delaynav::integrity::Integrity;
 use delaynav::replay::config_file::{config_to_toml, merge_config};
 use delaynav::replay::session::{
     ReplayObserver, ReplayOptions, ReplayReport, ReplaySetup, select_estimators,
@@ -163,6 +164,11 @@ struct Trace {
     covariance_diagonal: Vec<f64>,
     delay_s: Vec<f64>,
     delay_std_s: Vec<f64>,
+    /// Per estimate: tilt (deg), heading (deg), horizontal (m), vertical
+    /// (m), velocity (m/s) and delay (s) protection levels.
+    protection_levels: Vec<f64>,
+    /// Per estimate, the same six quantities' validity flags.
+    valid: Vec<bool>,
 }
 
 impl Trace {
@@ -185,6 +191,26 @@ impl Trace {
         self.delay_std_s.push(e.delay_std_s.unwrap_or(f64::NAN));
     }
 
+    fn push_integrity(&mut self, i: &Integrity<f64>) {
+        let l = &i.levels;
+        self.protection_levels.extend([
+            l.tilt_deg,
+            l.heading_deg,
+            l.horizontal_m,
+            l.vertical_m,
+            l.velocity_m_s,
+            l.delay_s,
+        ]);
+        self.valid.extend([
+            i.tilt_valid,
+            i.heading_valid,
+            i.horizontal_valid,
+            i.vertical_valid,
+            i.velocity_valid,
+            i.delay_valid,
+        ]);
+    }
+
     fn into_dict<'py>(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("t_us", PyArray1::from_vec(py, self.t_us))?;
@@ -203,6 +229,18 @@ impl Trace {
         )?;
         d.set_item("delay_s", PyArray1::from_vec(py, self.delay_s))?;
         d.set_item("delay_std_s", PyArray1::from_vec(py, self.delay_std_s))?;
+        if !self.protection_levels.is_empty() {
+            d.set_item(
+                "protection_levels",
+                matrix(py, self.protection_levels, LEVEL_NAMES.len()),
+            )?;
+            let rows = self.valid.len() / LEVEL_NAMES.len();
+            let valid = Array2::from_shape_vec((rows, LEVEL_NAMES.len()), self.valid)
+                .expect("rows * 6 flags")
+                .into_pyarray(py);
+            d.set_item("valid", valid)?;
+            d.set_item("level_names", LEVEL_NAMES.to_vec())?;
+        }
         Ok(d)
     }
 }
@@ -213,17 +251,29 @@ struct Collector<'a> {
     traces: Vec<(String, Trace)>,
 }
 
+/// The columns of `protection_levels` and `valid`.
+const LEVEL_NAMES: [&str; 6] = [
+    "tilt_deg",
+    "heading_deg",
+    "horizontal_m",
+    "vertical_m",
+    "velocity_m_s",
+    "delay_s",
+];
+
 impl ReplayObserver for Collector<'_> {
-    fn estimate(
+    fn estimate_with_integrity(
         &mut self,
         estimator: &str,
         e: &Estimate<f64>,
+        integrity: &dyn Fn() -> Integrity<f64>,
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         if self.traces.last().is_none_or(|(name, _)| name != estimator) {
             self.traces.push((estimator.to_string(), Trace::default()));
         }
         if let Some((_, trace)) = self.traces.last_mut() {
             trace.push(e, Some(self.setup.aligned_euler_deg(e)));
+            trace.push_integrity(&integrity());
         }
         Ok(())
     }

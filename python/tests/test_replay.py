@@ -73,6 +73,31 @@ def test_replay_arrays_on_log171():
     assert r.estimator("proposed")["yaw_rms_deg"] < 20
 
 
+def test_replay_protection_levels_follow_the_alert_limits():
+    r = delaynav.replay(log_path("log171.bin"), estimators=("proposed", "ekf16"))
+    for name in r.estimators:
+        t = r.trace(name)
+        n = len(t["t_us"])
+        levels, valid = t["protection_levels"], t["valid"]
+        assert levels.shape == (n, 6) and valid.shape == (n, 6), name
+        assert valid.dtype == bool
+        assert list(t["level_names"]) == [
+            "tilt_deg", "heading_deg", "horizontal_m", "vertical_m", "velocity_m_s", "delay_s"]
+        assert not np.any(np.isnan(levels)), name
+        # A valid quantity is one whose level is within its alert limit, at every estimate.
+        limits = r.config["ekf"]["integrity"]
+        for i, key in enumerate(["tilt_alert_limit_deg", "heading_alert_limit_deg",
+                                 "horizontal_alert_limit_m", "vertical_alert_limit_m",
+                                 "velocity_alert_limit_m_s"]):
+            assert np.all(levels[valid[:, i], i] <= limits[key] + 1e-9), (name, key)
+        # Aligned most of the flight: the tilt is valid at most estimates, with a finite level.
+        assert valid[:, 0].mean() > 0.5, name
+    # The summary's levels at the scored samples.
+    i = r.estimator("proposed")["integrity"]
+    assert i["epochs"] > 1000 and 0.0 < i["availability"] <= 1.0
+    assert 0.0 <= i["tilt_deg"]["exceeded_share"] <= 1.0
+
+
 def test_to_pandas():
     pd = pytest.importorskip("pandas")
     r = delaynav.replay(log_path("log171.bin"))

@@ -56,6 +56,7 @@ pub mod crate_csv;
 pub mod dataflash;
 pub mod defaults;
 pub mod estimates_csv;
+mod levels;
 pub mod px4;
 mod reference;
 pub mod run;
@@ -66,10 +67,11 @@ pub mod window;
 pub use defaults::{ImuNoise, LogDefaults, MagneticModel, NoiseSource, log_date, magnetic_model};
 pub use error::{ReplayError, seconds_to_us};
 pub use estimates_csv::EstimateWriter;
+pub use levels::{LevelSummary, ReplayIntegrity};
 pub use reference::{ReferenceAlignment, ReferenceReader, ReferenceSample};
 pub use run::{
     DelayStep, DelayStepSummary, DelayWindow, FusionRecords, ReferenceRms, RunOptions, RunSummary,
-    WindowAxis, inclination_at_rest, replay,
+    WindowAxis, inclination_at_rest, replay, replay_with,
 };
 pub use session::{
     ESTIMATORS, EstimatorReport, HealthSummary, RegisteredEstimator, ReplayObserver, ReplayOptions,

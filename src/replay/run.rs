@@ -15,7 +15,13 @@
 //!
 //! Reference samples before the estimator's first estimate or before the
 //! start of scoring are not scored, and counted.
+//!
+//! At each scored sample the estimator's protection levels are set beside
+//! the same differences ([`ReplayIntegrity`], `levels.rs`): the share of
+//! epochs each quantity is valid, the median level, and the share of valid
+//! epochs whose difference from the onboard solution exceeds the level.
 
+use super::levels::{LevelTally, ReplayIntegrity};
 use super::{ReferenceAlignment, ReferenceSample, SensorEvent};
 use crate::delay::DelayUpdate;
 use crate::error::Error;
@@ -240,6 +246,9 @@ pub struct RunSummary {
     /// Reference samples in the window that were not scored (before the
     /// first estimate or before `score_from_us`).
     pub reference_unscored: u64,
+    /// The protection levels at the scored reference samples, against the
+    /// reference (`None` without a scored sample).
+    pub integrity: Option<ReplayIntegrity>,
 }
 
 /// One update of a delay loop (one correlation window), in seconds.
@@ -506,11 +515,31 @@ where
     R: Iterator<Item = ReferenceSample>,
     F: FnMut(&Estimate<T>),
 {
+    replay_with(nav, events, reference, options, |e, _| on_estimate(e))
+}
+
+/// [`replay`], with the estimator beside each estimate: `on_estimate` may
+/// read its health or its [`Navigator::integrity`] at that sample.
+pub fn replay_with<T, N, E, R, F>(
+    nav: &mut N,
+    events: E,
+    reference: Option<R>,
+    options: &RunOptions,
+    mut on_estimate: F,
+) -> RunSummary
+where
+    T: Scalar,
+    N: Navigator<T> + FusionRecords<T>,
+    E: IntoIterator<Item = SensorEvent<T>>,
+    R: Iterator<Item = ReferenceSample>,
+    F: FnMut(&Estimate<T>, &N),
+{
     let mut summary = RunSummary::default();
     let mut squares = Squares::default();
     let mut reference: Option<Peekable<R>> = reference.map(Iterator::peekable);
     let mut previous: Option<Snapshot> = None;
     let mut records = RecordTally::default();
+    let mut levels = LevelTally::default();
     records.observe(nav);
     // Records already there before the window (none for a new estimator).
     records.counts = RunSummary::default();
@@ -553,7 +582,7 @@ where
             summary.non_finite_estimates += 1;
             continue;
         }
-        on_estimate(&estimate);
+        on_estimate(&estimate, nav);
         summary.last_estimate_t_us = Some(estimate.t_us);
         if let Some(d) = estimate.delay_s {
             summary.final_delay_s = Some(d.as_f64());
@@ -573,7 +602,8 @@ where
                 match previous {
                     Some(p) if r.t_us >= p.t_us && r.t_us >= score_from && r.t_us >= start => {
                         let at = p.interpolate(&current, r.t_us);
-                        score(&mut squares, &at, &r, options);
+                        let (aligned, velocity_error) = score(&mut squares, &at, &r, options);
+                        levels.add(&nav.integrity(), &aligned, &r.attitude, velocity_error);
                     }
                     _ if r.t_us >= start => summary.reference_unscored += 1,
                     _ => {}
@@ -583,6 +613,7 @@ where
         previous = Some(current);
     }
     summary.reference_rms = squares.rms();
+    summary.integrity = levels.summary();
     // Estimators without a delay estimate report no step.
     summary.delay_step = step.filter(|w| w.final_s.is_some()).map(|w| w.summary());
     if records.seen {
@@ -596,12 +627,14 @@ where
     summary
 }
 
+/// Adds one sample's squared differences; the aligned estimate and the
+/// velocity difference's norm (when the reference has velocity).
 fn score(
     squares: &mut Squares,
     estimate: &Snapshot,
     reference: &ReferenceSample,
     options: &RunOptions,
-) {
+) -> (UnitQuaternion<f64>, Option<f64>) {
     let aligned = options
         .alignment
         .align_estimate(&estimate.attitude, options.estimator_declination_rad);
@@ -611,10 +644,13 @@ fn score(
     squares.roll += wrap_pi(e.x - r.x).powi(2);
     squares.pitch += wrap_pi(e.y - r.y).powi(2);
     squares.yaw += wrap_pi(e.z - r.z).powi(2);
-    if let Some(v) = reference.velocity_ned_m_s {
-        squares.velocity += (estimate.velocity - v).norm_squared();
+    let velocity_error = reference.velocity_ned_m_s.map(|v| {
+        let e = (estimate.velocity - v).norm_squared();
+        squares.velocity += e;
         squares.velocity_n += 1;
-    }
+        e.sqrt()
+    });
+    (aligned, velocity_error)
 }
 
 /// The magnetic inclination (radians, positive when the field points below

@@ -4,9 +4,10 @@
 
 use super::{EstimatorReport, HealthSummary, LogScan, ReplayReport, ReplaySetup};
 use crate::estimate::{Estimate, Navigator};
+use crate::integrity::Integrity;
 use crate::replay::{
     DelayStep, FusionRecords, LogReader, ReaderOptions, ReferenceReader, ReplayError, RunOptions,
-    RunSummary, replay,
+    RunSummary, replay_with,
 };
 use crate::{AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, Ekf16, Health};
 
@@ -35,6 +36,20 @@ pub trait ReplayObserver {
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let _ = (estimator, estimate);
         Ok(())
+    }
+
+    /// [`Self::estimate`] with the estimator's protection levels and
+    /// validity flags at that sample, computed only when `integrity` is
+    /// called: override this one to record them. By default it calls
+    /// [`Self::estimate`].
+    fn estimate_with_integrity(
+        &mut self,
+        estimator: &str,
+        estimate: &Estimate<f64>,
+        integrity: &dyn Fn() -> Integrity<f64>,
+    ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let _ = integrity;
+        self.estimate(estimator, estimate)
     }
 
     /// The pass started last has ended.
@@ -200,15 +215,21 @@ fn run_one<N: Navigator<f64> + FusionRecords<f64>>(
     let (observer, reported) = (&mut *pass.observer, pass.reported);
     observer.started(name, length_s);
     let mut output_error = None;
-    let summary = replay(nav, events, reference, &pass.run, |e: &Estimate<f64>| {
-        observer.progress(e.t_us.saturating_sub(start_us) / 1_000_000);
-        if reported
-            && output_error.is_none()
-            && let Err(err) = observer.estimate(name, e)
-        {
-            output_error = Some(err);
-        }
-    });
+    let summary = replay_with(
+        nav,
+        events,
+        reference,
+        &pass.run,
+        |e: &Estimate<f64>, nav| {
+            observer.progress(e.t_us.saturating_sub(start_us) / 1_000_000);
+            if reported
+                && output_error.is_none()
+                && let Err(err) = observer.estimate_with_integrity(name, e, &|| nav.integrity())
+            {
+                output_error = Some(err);
+            }
+        },
+    );
     observer.finished();
     match output_error {
         Some(err) => Err(ReplayError::Output(err)),

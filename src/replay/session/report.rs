@@ -3,7 +3,7 @@
 //! delay loop's updates.
 
 use super::{HealthSummary, LogScan, RegisteredEstimator, ReplaySetup};
-use crate::replay::{RunSummary, SkipCounts, SkipKind};
+use crate::replay::{LevelSummary, ReplayIntegrity, RunSummary, SkipCounts, SkipKind};
 use serde_json::{Value, json};
 use std::fmt;
 use std::io::Write;
@@ -98,6 +98,7 @@ impl EstimatorReport {
             "mag_gated": s.mag_gated,
             "rows_skipped": skips_json(skips),
         });
+        entry["integrity"] = s.integrity.as_ref().map_or(Value::Null, integrity_json);
         entry["about"] = json!(self.estimator.about);
         entry["health"] = self.health.to_json();
         entry
@@ -228,6 +229,89 @@ impl ReplayReport {
     }
 }
 
+/// The JSON's `integrity` of one estimator (docs/replay.md, "Protection levels").
+fn integrity_json(i: &ReplayIntegrity) -> Value {
+    let level = |l: &LevelSummary| {
+        json!({
+            "valid_share": l.valid_share,
+            "median_level": l.median_level.filter(|m| m.is_finite()),
+            "exceeded_share": l.exceeded_share,
+        })
+    };
+    json!({
+        "epochs": i.epochs,
+        "availability": i.availability,
+        "tilt_deg": level(&i.tilt),
+        "heading_deg": level(&i.heading),
+        "horizontal_m": level(&i.horizontal),
+        "vertical_m": level(&i.vertical),
+        "velocity_m_s": level(&i.velocity),
+    })
+}
+
+impl EstimatorReport {
+    /// The protection levels at the scored samples, two lines (`None`
+    /// without a scored sample): the median level and the valid share per
+    /// quantity, the availability, and the share of valid epochs whose
+    /// difference from the onboard solution exceeds the level.
+    pub fn integrity_lines(&self) -> Option<String> {
+        let i = self.summary.integrity.as_ref()?;
+        let median = |l: &LevelSummary, unit: &str| match l.median_level {
+            Some(m) if m.is_finite() => format!("{m:.2} {unit}"),
+            _ => "none".to_string(),
+        };
+        let share =
+            |s: Option<f64>| s.map_or_else(|| "-".to_string(), |x| format!("{:.1}%", 100.0 * x));
+        let quantities = [
+            ("tilt", &i.tilt, "deg"),
+            ("heading", &i.heading, "deg"),
+            ("horizontal", &i.horizontal, "m"),
+            ("vertical", &i.vertical, "m"),
+            ("velocity", &i.velocity, "m/s"),
+        ];
+        let levels: Vec<String> = quantities
+            .iter()
+            .map(|(name, l, unit)| {
+                format!(
+                    "{name} {} (valid {:.1}%)",
+                    median(l, unit),
+                    100.0 * l.valid_share
+                )
+            })
+            .collect();
+        Some(format!(
+            "  {}: median levels {}; all valid {:.1}% of {} epochs\n  {}: beyond the level against the onboard solution, of the valid epochs: tilt {}, heading {}, velocity {}\n",
+            self.estimator.name,
+            levels.join(", "),
+            100.0 * i.availability,
+            i.epochs,
+            self.estimator.name,
+            share(i.tilt.exceeded_share),
+            share(i.heading.exceeded_share),
+            share(i.velocity.exceeded_share),
+        ))
+    }
+}
+
+impl ReplayReport {
+    /// The protection levels of every estimator at the scored samples
+    /// ([`EstimatorReport::integrity_lines`]), under a heading line; empty
+    /// when none was scored.
+    pub fn integrity(&self) -> String {
+        let lines: String = self
+            .estimators
+            .iter()
+            .filter_map(EstimatorReport::integrity_lines)
+            .collect();
+        if lines.is_empty() {
+            return lines;
+        }
+        format!(
+            "\nprotection levels at the scored samples (docs/replay.md, \"Protection levels\"):\n{lines}"
+        )
+    }
+}
+
 impl fmt::Display for ReplayReport {
     /// What the console shows once the estimators have run: the table, the
     /// delay steps, the health summary.
@@ -236,7 +320,13 @@ impl fmt::Display for ReplayReport {
         for e in &self.estimators {
             writeln!(f, "{}", e.table_row())?;
         }
-        write!(f, "{}{}", self.delay_steps(), self.health())
+        write!(
+            f,
+            "{}{}{}",
+            self.delay_steps(),
+            self.health(),
+            self.integrity()
+        )
     }
 }
 
