@@ -334,10 +334,11 @@ fn joseph_in_place<T: Scalar, const N: usize, const M: usize>(
     }
     if negative || !sum.is_finite() {
         p.fill_lower_triangle_with_upper_triangle();
-        for (j, (column, &d)) in p.data.0.iter_mut().zip(diagonal.iter()).enumerate() {
-            if let Some(entry) = column.get_mut(j) {
-                *entry = d;
-            }
+        // Indices below the arrays' lengths (not `enumerate`: its counter
+        // has an overflow check).
+        #[allow(clippy::needless_range_loop)]
+        for j in 0..N {
+            p.data.0[j][j] = diagonal.data.0[0][j];
         }
         return false;
     }

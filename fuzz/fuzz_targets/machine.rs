@@ -12,6 +12,8 @@
 pub(crate) mod push_api;
 
 use push_api::fuzz_input::{self, Input, STARTS_MS, Start};
+use std::collections::HashMap;
+use std::sync::Mutex;
 
 /// The start and the operations of an input.
 pub(crate) fn decode(data: &[u8]) -> Option<Input> {
@@ -33,21 +35,36 @@ pub(crate) fn starts<T: delaynav::Scalar, S: push_api::Subject<T> + Clone>(
         .collect()
 }
 
-/// One case from a saved start, or from a calm start flown here; panics (a
-/// finding) with the operations.
+/// The other calm starts (`Start::Calm`), each flown once per process
+/// (a mutation repeats a start byte: flying it in every execution made
+/// the runs slow).
+pub(crate) type CalmStarts<S> = Mutex<Option<HashMap<u32, (S, u64)>>>;
+
+/// One case from a saved start, or from another calm start (flown once,
+/// then cloned); panics (a finding) with the operations.
 pub(crate) fn run<T: delaynav::Scalar, S: push_api::Subject<T> + Clone>(
     make: fn() -> S,
     starts: &[(S, u64)],
+    calm: &CalmStarts<S>,
     input: &Input,
     name: &str,
 ) {
-    let result = match input.start {
-        Start::Saved(i) => {
-            let (s, cursor) = &starts[i % starts.len()];
-            push_api::replay_from(s.clone(), *cursor, &input.ops)
+    let (s, cursor) = match input.start {
+        Start::Saved(i) => starts[i % starts.len()].clone(),
+        Start::Calm(ms) => {
+            let mut cache = calm.lock().unwrap_or_else(|e| e.into_inner());
+            let cache = cache.get_or_insert_with(HashMap::new);
+            cache
+                .entry(ms)
+                .or_insert_with(|| {
+                    push_api::replay(make(), Some(ms), &[])
+                        .expect("the calm start passes the checks")
+                        .into_parts()
+                })
+                .clone()
         }
-        Start::Calm(ms) => push_api::replay(make(), Some(ms), &input.ops),
     };
+    let result = push_api::replay_from(s, cursor, &input.ops);
     if let Err(e) = result {
         panic!(
             "{name}: {e}\nstart {:?} (calm ms {:?}), ops {:?}",
@@ -66,6 +83,8 @@ macro_rules! estimator_target {
 
         static STARTS_32: OnceLock<Vec<($ty32, u64)>> = OnceLock::new();
         static STARTS_64: OnceLock<Vec<($ty64, u64)>> = OnceLock::new();
+        static CALM_32: machine::CalmStarts<$ty32> = std::sync::Mutex::new(None);
+        static CALM_64: machine::CalmStarts<$ty64> = std::sync::Mutex::new(None);
 
         libfuzzer_sys::fuzz_target!(|data: &[u8]| {
             let Some(input) = machine::decode(data) else {
@@ -73,10 +92,10 @@ macro_rules! estimator_target {
             };
             if input.f64 {
                 let starts = STARTS_64.get_or_init(|| machine::starts($make64));
-                machine::run($make64, starts, &input, concat!("f64 ", $name));
+                machine::run($make64, starts, &CALM_64, &input, concat!("f64 ", $name));
             } else {
                 let starts = STARTS_32.get_or_init(|| machine::starts($make32));
-                machine::run($make32, starts, &input, concat!("f32 ", $name));
+                machine::run($make32, starts, &CALM_32, &input, concat!("f32 ", $name));
             }
         });
     };

@@ -215,7 +215,7 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
 /// variances to 1e11 within a dozen steps, and a GPS fix then left a
 /// negative variance in `f32`. The ceiling keeps `P` where the updates
 /// stay sound; each step that needs it is counted in
-/// `FilterRefusals::imu_out_of_range` ([`cap_quaternion_variance`]).
+/// `FilterRefusals::imu_out_of_range` (`cap_quaternion_variance`).
 pub const QUATERNION_VARIANCE_CEILING: f64 = 4.0;
 
 /// Caps the quaternion's variances at [`QUATERNION_VARIANCE_CEILING`]:
@@ -248,10 +248,8 @@ fn cap_quaternion_variance<T: Scalar, const N: usize>(p: &mut SMatrix<T, N, N>) 
 
 /// Every variance of `p` is zero or positive (not negative, not NaN).
 fn variances_not_negative<T: Scalar, const N: usize>(p: &SMatrix<T, N, N>) -> bool {
-    p.data
-        .0
-        .iter()
-        .enumerate()
+    (0..N)
+        .zip(p.data.0.iter())
         .all(|(j, column)| column.get(j).is_none_or(|v| *v >= T::zero()))
 }
 
