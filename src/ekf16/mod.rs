@@ -170,8 +170,8 @@ pub struct FilterRefusals {
     pub imu_non_finite: u32,
     /// IMU samples above the plausible range, or whose step would make the state non-finite
     /// (refused); also the steps integrated with a quaternion variance capped at
-    /// [`QUATERNION_VARIANCE_CEILING`](crate::ekf16::QUATERNION_VARIANCE_CEILING) (a rotation
-    /// per step too large for the covariance's linearization: samples far apart at high rates).
+    /// [`QUATERNION_VARIANCE_CEILING`] (a rotation per step too large for the covariance's
+    /// linearization: samples far apart at high rates).
     pub imu_out_of_range: u32,
     /// IMU samples duplicated or going back in time.
     pub imu_time: u32,
