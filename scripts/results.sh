@@ -48,7 +48,8 @@ step() {
 }
 
 echo "building the reproduce example and the delaynav command (release)" >&2
-cargo build --release --all-features --example reproduce -p delaynav-cli
+cargo build --release --all-features --example reproduce
+cargo build --release -p delaynav-cli
 bin="${CARGO_TARGET_DIR:-target}/release"
 reproduce() { "$bin/examples/reproduce" "$@"; }
 replay() { "$bin/delaynav" replay "$@"; }

@@ -32,7 +32,7 @@ for rev in "$base" "$new"; do
     replay=("$out/target-$sha/release/examples/replay")
   else
     (cd "$tree" && CARGO_TARGET_DIR="$out/target-$sha" \
-       cargo build -q --release --all-features --example reproduce -p delaynav-cli)
+       cargo build -q --release --all-features --example reproduce && cargo build -q --release -p delaynav-cli)
     replay=("$out/target-$sha/release/delaynav" replay)
   fi
   bin="$out/target-$sha/release/examples/reproduce"

@@ -42,10 +42,12 @@
 //! million. A rejected measurement leaves `x` and `P` exactly as they were
 //! and still yields a [`FusionRecord`] (with `fused = false`).
 //!
-//! Nothing is changed unless the measurement is accepted and the new `x` and
-//! `P` are finite: `x` is computed into a temporary and checked first; `P`
-//! is updated in place on its lower triangle, and restored from its upper
-//! triangle (`P` is kept exactly symmetric) when the result is not finite.
+//! Nothing is changed unless the measurement is accepted, the new `x` and
+//! `P` are finite and no new variance is negative: `x` is computed into a
+//! temporary and checked first; `P` is updated in place on its lower
+//! triangle, and restored from its upper triangle (`P` is kept exactly
+//! symmetric) when the result is not finite or has a negative variance
+//! (rounding in an ill-conditioned `P`: the update is reported rejected).
 
 use crate::error::Error;
 use crate::estimate::FusionRecord;
@@ -282,10 +284,13 @@ fn dot<T: Scalar, const M: usize>(a: &[T; M], b: &[T; M]) -> T {
 /// an entry of the triangle.
 ///
 /// Returns false, with `P` as it was, when an entry of the result is not
-/// finite: the sum of the new lower triangle is checked (a sum of finite
-/// numbers is finite unless it overflows, which also refuses), and the old
-/// lower triangle is restored from the untouched upper one and the saved
-/// diagonal.
+/// finite or a variance is negative: the sum of the new lower triangle is
+/// checked (a sum of finite numbers is finite unless it overflows, which
+/// also refuses), and so is the sign of each new variance (exact arithmetic
+/// keeps it; rounding does not when `P` is ill-conditioned, e.g. in `f32`
+/// after steps of large rotations: such a result is no covariance). The
+/// old lower triangle is restored from the untouched upper one and the
+/// saved diagonal.
 fn joseph_in_place<T: Scalar, const N: usize, const M: usize>(
     p: &mut SMatrix<T, N, N>,
     h: &SMatrix<T, M, N>,
@@ -314,6 +319,7 @@ fn joseph_in_place<T: Scalar, const N: usize, const M: usize>(
     }
     let diagonal = p.diagonal();
     let mut sum = T::zero();
+    let mut negative = false;
     let columns = &mut p.data.0;
     // Indices below their arrays' lengths, as in `restricted_gain`.
     #[allow(clippy::needless_range_loop)]
@@ -324,13 +330,15 @@ fn joseph_in_place<T: Scalar, const N: usize, const M: usize>(
             columns[j][i] = entry;
             sum += entry;
         }
+        negative |= columns[j][j] < T::zero();
     }
-    if !sum.is_finite() {
+    if negative || !sum.is_finite() {
         p.fill_lower_triangle_with_upper_triangle();
-        for (j, (column, &d)) in p.data.0.iter_mut().zip(diagonal.iter()).enumerate() {
-            if let Some(entry) = column.get_mut(j) {
-                *entry = d;
-            }
+        // Indices below the arrays' lengths (not `enumerate`: its counter
+        // has an overflow check).
+        #[allow(clippy::needless_range_loop)]
+        for j in 0..N {
+            p.data.0[j][j] = diagonal.data.0[0][j];
         }
         return false;
     }

@@ -459,3 +459,35 @@ fn magnitudes_that_broke_the_f32_state_are_refused() {
     magnitude_ceilings::<f32>();
     magnitude_ceilings::<f64>();
 }
+
+/// `max_imu_step_us` is at most `MAX_TIME_JUMP_US` (1 s): the `aekf17`
+/// fuzz target configured 1e9 µs, and steps of 1,000 s were integrated
+/// (docs/faults.md). The error names the key, the value and the bound.
+fn imu_step_bound<T: Scalar>() {
+    let mut c = Ekf16Config::<T> {
+        max_imu_step_us: delaynav::ekf16::MAX_TIME_JUMP_US,
+        ..Ekf16Config::default()
+    };
+    assert_eq!(c.validate(), Ok(()));
+    for refused in [1_000_001, 1_000_000_000] {
+        c.max_imu_step_us = refused;
+        let e = c.validate().expect_err("refused");
+        assert_eq!(
+            e.to_string(),
+            invalid(&format!(
+                "`max_imu_step_us` = {refused}, must lie in [1, 1000000]"
+            )),
+        );
+    }
+    c.max_imu_step_us = u64::MAX;
+    assert!(matches!(
+        c.validate(),
+        Err(Error::InvalidConfig { field, .. }) if field == "max_imu_step_us"
+    ));
+}
+
+#[test]
+fn the_imu_step_is_at_most_a_time_jump() {
+    imu_step_bound::<f32>();
+    imu_step_bound::<f64>();
+}

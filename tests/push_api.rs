@@ -38,9 +38,11 @@
 //!
 //! `PROPTEST_CASES` raises the case count (default [`DEFAULT_CASES`]).
 //!
-//! The cargo-fuzz target `push_api` (`fuzz/fuzz_targets/push_api.rs`)
-//! includes this file and draws [`case`] from the fuzz input; the items it
-//! uses are `pub(crate)` for that.
+//! The cargo-fuzz estimator targets (`fuzz/fuzz_targets/machine.rs`)
+//! include this file and decode their inputs into [`Op`]s
+//! ([`fuzz_input`], `tests/support/fuzz_input.rs`); the items they use are
+//! `pub(crate)` for that. [`regression_cases`] are fuzz seeds
+//! ([`fuzz_seeds_are_the_regression_cases`]).
 
 use delaynav::ekf16::state::StateVector;
 use delaynav::nav::{DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, NavRefusals};
@@ -50,6 +52,9 @@ use delaynav::{
 };
 use nalgebra::{DMatrix, Vector3};
 use proptest::prelude::*;
+
+#[path = "support/fuzz_input.rs"]
+pub(crate) mod fuzz_input;
 use proptest::test_runner::{Config, TestCaseError, TestError, TestRunner};
 
 /// Cases per estimator and precision unless `PROPTEST_CASES` says otherwise.
@@ -960,8 +965,7 @@ fn all_estimators(ops: &[Op]) -> Vec<String> {
 }
 
 /// Every estimator of both precisions through one case (`start`, `ops`);
-/// the failures, one line each. Also the fuzz target's body
-/// (`fuzz/fuzz_targets/push_api.rs`, which includes this file).
+/// the failures, one line each.
 pub(crate) fn every_estimator(start: Option<u32>, ops: &[Op]) -> Vec<String> {
     fn run<T: Scalar, S: Subject<T>>(
         name: &str,
@@ -1010,7 +1014,13 @@ fn level_imu(t: Time) -> Op {
 /// a calm second: no panic, the state stays sound, every refusal counted.
 #[test]
 fn u64_max_stamps_then_back() {
-    let ops = [
+    let failures = all_estimators(&u64_max_stamps_ops());
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The case of [`u64_max_stamps_then_back`] (after a 1 s calm start).
+fn u64_max_stamps_ops() -> Vec<Op> {
+    vec![
         level_imu(Time::At(u64::MAX)),
         level_imu(Time::Same),
         Op::Mag {
@@ -1025,9 +1035,7 @@ fn u64_max_stamps_then_back() {
         },
         level_imu(Time::At(2_001_000)),
         Op::Calm(1_000),
-    ];
-    let failures = all_estimators(&ops);
-    assert!(failures.is_empty(), "{failures:#?}");
+    ]
 }
 
 /// Fixed bug: an IMU gap of 10 h broke the covariance of every estimator
@@ -1042,19 +1050,38 @@ fn u64_max_stamps_then_back() {
 #[test]
 fn long_imu_gap() {
     let mut failures = Vec::new();
-    for gap_us in [36_000_000_000u64, 3_600_000_000_000, 1 << 58] {
-        let ops = [level_imu(Time::After(gap_us)), Op::Calm(1_000)];
-        for f in all_estimators(&ops) {
-            failures.push(format!("gap {gap_us} us: {f}"));
+    let cases = long_imu_gap_cases();
+    for (name, start, ops) in &cases[..3] {
+        for f in every_estimator(*start, ops) {
+            failures.push(format!("{name}: {f}"));
         }
     }
+    let [(_, _, two_hours), (_, _, thirty_min)] = &cases[3..] else {
+        unreachable!("five cases");
+    };
+    if let Err(e) = replay(f32_::aekf17(), None, two_hours) {
+        failures.push(format!("2 h after a tilted start, f32 aekf17: {e}"));
+    }
+    if let Err(e) = replay(f32_::aekf17(), None, thirty_min) {
+        failures.push(format!("3 x 10 min, f32 aekf17: {e}"));
+    }
+    if let Err(e) = replay(f64_::aekf17(), None, thirty_min) {
+        failures.push(format!("3 x 10 min, f64 aekf17: {e}"));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The cases of [`long_imu_gap`]: the three gaps after a 1 s calm start,
+/// then the two `AugmentedEkf17` cases from a fresh start.
+fn long_imu_gap_cases() -> Vec<(&'static str, Option<u32>, Vec<Op>)> {
+    let gap = |us| vec![level_imu(Time::After(us)), Op::Calm(1_000)];
     let fix = |t, p: [f64; 3], v: [f64; 3]| Op::Gps {
         t,
         position: Position::Ned(p),
         velocity: v,
         accuracy: [None; 3],
     };
-    let two_hours = [
+    let two_hours = vec![
         Op::Imu {
             t: Time::After(10_684),
             gyro: [
@@ -1087,13 +1114,10 @@ fn long_imu_gap() {
         },
         Op::Calm(260),
     ];
-    if let Err(e) = replay(f32_::aekf17(), None, &two_hours) {
-        failures.push(format!("2 h after a tilted start, f32 aekf17: {e}"));
-    }
     // Three jumps of 10 min on the GPS and IMU clocks (machine, 2000 cases):
     // the delay variance goes negative, its standard deviation NaN (f64).
     let ten_min = Time::After(600_000_000);
-    let thirty_min = [
+    let thirty_min = vec![
         Op::Imu {
             t: Time::Same,
             gyro: [0.0, -0.24858218282023745, -0.0476114647965351],
@@ -1136,13 +1160,13 @@ fn long_imu_gap() {
             field: [0.1, 0.0, 0.3],
         },
     ];
-    if let Err(e) = replay(f32_::aekf17(), None, &thirty_min) {
-        failures.push(format!("3 x 10 min, f32 aekf17: {e}"));
-    }
-    if let Err(e) = replay(f64_::aekf17(), None, &thirty_min) {
-        failures.push(format!("3 x 10 min, f64 aekf17: {e}"));
-    }
-    assert!(failures.is_empty(), "{failures:#?}");
+    vec![
+        ("long_imu_gap_10h", Some(1_000), gap(36_000_000_000)),
+        ("long_imu_gap_1000h", Some(1_000), gap(3_600_000_000_000)),
+        ("long_imu_gap_2e58us", Some(1_000), gap(1 << 58)),
+        ("long_imu_gap_two_hours", None, two_hours),
+        ("long_imu_gap_thirty_min", None, thirty_min),
+    ]
 }
 
 /// Known bug: the navigator's horizon EKF counters (`refusals().horizon`, also in
@@ -1158,7 +1182,23 @@ fn long_imu_gap() {
 /// sample 250.001 ms later (a gap), 0.1 s calm (the alignment's rebuild).
 #[test]
 fn nav_keeps_horizon_refusals() {
-    let gated_then_reset = [
+    let mut failures = Vec::new();
+    for (_, start, ops) in horizon_refusals_cases() {
+        for mode in [
+            DelayMode::Fixed { delay_s: 0.1 },
+            DelayMode::Estimated { initial_s: 0.1 },
+        ] {
+            if let Err(e) = replay(nav::<f64>(mode), start, &ops) {
+                failures.push(format!("{mode:?}: {e}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The cases of [`nav_keeps_horizon_refusals`] (after a 0.3 s calm start).
+fn horizon_refusals_cases() -> Vec<(&'static str, Option<u32>, Vec<Op>)> {
+    let gated_then_reset = vec![
         Op::Gps {
             t: Time::After(1),
             position: Position::Ned([0.0, 0.0, -50.0]),
@@ -1167,24 +1207,32 @@ fn nav_keeps_horizon_refusals() {
         },
         Op::Reset,
     ];
-    let gap_then_alignment = [
+    let gap_then_alignment = vec![
         Op::Reset,
         Op::Calm(101),
         level_imu(Time::After(250_001)),
         Op::Calm(100),
     ];
-    let mut failures = Vec::new();
-    for ops in [&gated_then_reset[..], &gap_then_alignment[..]] {
-        for mode in [
-            DelayMode::Fixed { delay_s: 0.1 },
-            DelayMode::Estimated { initial_s: 0.1 },
-        ] {
-            if let Err(e) = replay(nav::<f64>(mode), Some(300), ops) {
-                failures.push(format!("{mode:?}: {e}"));
-            }
-        }
-    }
-    assert!(failures.is_empty(), "{failures:#?}");
+    vec![
+        (
+            "horizon_refusals_gated_then_reset",
+            Some(300),
+            gated_then_reset,
+        ),
+        (
+            "horizon_refusals_gap_then_alignment",
+            Some(300),
+            gap_then_alignment,
+        ),
+    ]
+}
+
+/// The case of [`nav_estimated_imu_near_u64_max`] (after a 1 s calm start).
+fn imu_near_u64_max_ops() -> Vec<Op> {
+    vec![
+        level_imu(Time::At(u64::MAX - 1_000)),
+        level_imu(Time::At(u64::MAX)),
+    ]
 }
 
 /// In estimated mode an accepted IMU sample within half a delay grid period
@@ -1196,10 +1244,7 @@ fn nav_keeps_horizon_refusals() {
 /// cases before the grid's checked arithmetic).
 #[test]
 fn nav_estimated_imu_near_u64_max() {
-    let ops = [
-        level_imu(Time::At(u64::MAX - 1_000)),
-        level_imu(Time::At(u64::MAX)),
-    ];
+    let ops = imu_near_u64_max_ops();
     let mut failures = Vec::new();
     for (name, result) in [
         (
@@ -1230,7 +1275,20 @@ fn nav_estimated_imu_near_u64_max() {
 /// 10 min later, a fix with speed accuracy 1e-20, a magnetometer sample.
 #[test]
 fn tiny_speed_accuracy() {
-    let ops = [
+    let ops = tiny_speed_accuracy_ops();
+    let mut failures = Vec::new();
+    if let Err(e) = replay(f64_::ekf16(), Some(1_154), &ops) {
+        failures.push(format!("f64 ekf16: {e}"));
+    }
+    if let Err(e) = replay(f32_::ekf16(), Some(1_154), &ops) {
+        failures.push(format!("f32 ekf16: {e}"));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The case of [`tiny_speed_accuracy`] (after a 1.154 s calm start).
+fn tiny_speed_accuracy_ops() -> Vec<Op> {
+    vec![
         Op::Imu {
             t: Time::After(600_000_000),
             gyro: [
@@ -1250,15 +1308,7 @@ fn tiny_speed_accuracy() {
             t: Time::After(1),
             field: [0.1, 0.0, 0.3],
         },
-    ];
-    let mut failures = Vec::new();
-    if let Err(e) = replay(f64_::ekf16(), Some(1_154), &ops) {
-        failures.push(format!("f64 ekf16: {e}"));
-    }
-    if let Err(e) = replay(f32_::ekf16(), Some(1_154), &ops) {
-        failures.push(format!("f32 ekf16: {e}"));
-    }
-    assert!(failures.is_empty(), "{failures:#?}");
+    ]
 }
 
 /// Known bug: a NED fix at `f32::MAX` (in `f32`) or `f64::MAX` (in `f64`)
@@ -1271,22 +1321,7 @@ fn tiny_speed_accuracy() {
 /// 0.1 s of calm flight.
 #[test]
 fn nav_huge_ned_fix() {
-    let huge_fix = |t, p| Op::Gps {
-        t,
-        position: Position::Ned(p),
-        velocity: [0.0; 3],
-        accuracy: [None; 3],
-    };
-    let f32_ops = [
-        Op::Calm(114),
-        huge_fix(Time::After(6_000), [0.0, 0.0, f32::MAX as f64]),
-        Op::Calm(96),
-    ];
-    let f64_ops = [
-        Op::Calm(102),
-        huge_fix(Time::After(18_000), [f64::MAX, 0.0, 0.0]),
-        Op::Calm(89),
-    ];
+    let [f32_ops, f64_ops] = huge_ned_fix_ops();
     let mut failures = Vec::new();
     if let Err(e) = replay(f32_::nav_fixed(), None, &f32_ops) {
         failures.push(format!("f32 nav fixed: {e}"));
@@ -1295,6 +1330,27 @@ fn nav_huge_ned_fix() {
         failures.push(format!("f64 nav fixed: {e}"));
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The cases of [`nav_huge_ned_fix`] (from a fresh start): `f32`, `f64`.
+fn huge_ned_fix_ops() -> [Vec<Op>; 2] {
+    let huge_fix = |t, p| Op::Gps {
+        t,
+        position: Position::Ned(p),
+        velocity: [0.0; 3],
+        accuracy: [None; 3],
+    };
+    let f32_ops = vec![
+        Op::Calm(114),
+        huge_fix(Time::After(6_000), [0.0, 0.0, f32::MAX as f64]),
+        Op::Calm(96),
+    ];
+    let f64_ops = vec![
+        Op::Calm(102),
+        huge_fix(Time::After(18_000), [f64::MAX, 0.0, 0.0]),
+        Op::Calm(89),
+    ];
+    [f32_ops, f64_ops]
 }
 
 /// The fuzz targets start from saved states: a case from a saved calm start
@@ -1316,4 +1372,145 @@ fn saved_start_replays_like_a_calm_start() {
     assert_eq!(a.1, b.1);
     assert!(a.0.estimate().is_some());
     assert_eq!(a.0.estimate(), b.0.estimate());
+}
+
+/// Fixed bug (found by the `ekf16` and `aekf17` fuzz targets, which had
+/// configured `max_imu_step_us` to hours: now at most 1 s): steps of a
+/// tenth to a quarter of a second at 30-35 rad/s. The second-order
+/// transition of the attitude covariance grows it by `sqrt(1 + θ⁴/64)` per
+/// step of rotation `θ` (7x at 240 ms and 30 rad/s on three axes); the
+/// quaternion's variances reached 1e11-1e37, and a GPS fix or the
+/// projection on the unit sphere left negative variances, in `f64` too.
+/// The quaternion's variances are now capped (`QUATERNION_VARIANCE_CEILING`)
+/// and a prediction or an update that would leave a negative variance is
+/// refused (both counted). [`fast_spin_cases`] has the cases.
+#[test]
+fn fast_spin_in_long_steps() {
+    let mut failures = Vec::new();
+    for (name, start, ops) in fast_spin_cases() {
+        for f in every_estimator(start, &ops) {
+            failures.push(format!("{name}: {f}"));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The cases of [`fast_spin_in_long_steps`] (also fuzz seeds): eight steps
+/// of 240 ms at 30 rad/s, then a fix (the pre-fix code failed `Ekf16` in
+/// both precisions); forty steps of 100 ms at 35 rad/s, each followed by a
+/// fix 5 cm accurate (`f32` navigator with the ceiling alone).
+pub(crate) fn fast_spin_cases() -> Vec<(&'static str, Option<u32>, Vec<Op>)> {
+    let spin = |dt, w: f64| Op::Imu {
+        t: Time::After(dt),
+        gyro: [w, -w, w],
+        accel: [0.0, 0.0, -GRAVITY],
+    };
+    let fix = |i: u32, accuracy| Op::Gps {
+        t: Time::After(1),
+        position: Position::Ned([f64::from(i); 3]),
+        velocity: [1.0; 3],
+        accuracy,
+    };
+    let mut eight: Vec<Op> = (0..8).map(|_| spin(240_000, 30.0)).collect();
+    eight.push(fix(0, [Some(0.2), None, Some(0.1)]));
+    eight.push(Op::Calm(300));
+    let forty = (0..40)
+        .flat_map(|i| [spin(100_000, 35.0), fix(i, [Some(0.05); 3])])
+        .collect();
+    vec![
+        ("fast_spin_eight_steps", Some(1_000), eight),
+        ("fast_spin_forty_fixes", Some(1_000), forty),
+    ]
+}
+
+/// Every regression case of this file (name, calm start, operations): the
+/// fuzz seeds of [`fuzz_seeds_are_the_regression_cases`].
+pub(crate) fn regression_cases() -> Vec<(&'static str, Option<u32>, Vec<Op>)> {
+    let [huge_f32, huge_f64] = huge_ned_fix_ops();
+    let mut cases = vec![
+        (
+            "u64_max_stamps_then_back",
+            Some(1_000),
+            u64_max_stamps_ops(),
+        ),
+        ("imu_near_u64_max", Some(1_000), imu_near_u64_max_ops()),
+        (
+            "tiny_speed_accuracy",
+            Some(1_154),
+            tiny_speed_accuracy_ops(),
+        ),
+        ("huge_ned_fix_f32", None, huge_f32),
+        ("huge_ned_fix_f64", None, huge_f64),
+    ];
+    cases.extend(long_imu_gap_cases());
+    cases.extend(horizon_refusals_cases());
+    cases.extend(fast_spin_cases());
+    cases
+}
+
+/// The fuzz targets whose corpora hold the regression seeds.
+const FUZZ_TARGETS: [&str; 4] = ["nav_estimated", "nav_fixed", "ekf16", "aekf17"];
+
+/// The regression cases are fuzz seeds: `fuzz/corpus/TARGET/regression-NAME-
+/// PRECISION` is [`fuzz_input::encode`] of each case in each precision, for
+/// each estimator target; the input decodes to a case that flies as the
+/// original does (the same estimate and cursor at the end). `DELAYNAV_WRITE_FUZZ_SEEDS=1 cargo test
+/// --test push_api fuzz_seeds` writes the files.
+#[test]
+fn fuzz_seeds_are_the_regression_cases() {
+    fn same<T: Scalar, S: Subject<T>>(
+        make: fn() -> S,
+        case: (Option<u32>, &[Op]),
+        input: &fuzz_input::Input,
+    ) -> Result<(), String> {
+        let fly = |start, ops: &[Op]| {
+            replay(make(), start, ops)
+                .map(|d| {
+                    let (s, cursor) = d.into_parts();
+                    format!("{:?} {cursor}", s.estimate())
+                })
+                .map_err(|e| e.to_string())
+        };
+        let (a, b) = (fly(case.0, case.1), fly(input.start.calm_ms(), &input.ops));
+        if a == b {
+            Ok(())
+        } else {
+            Err(format!("original {a:?}\ndecoded {b:?}"))
+        }
+    }
+    let write = std::env::var_os("DELAYNAV_WRITE_FUZZ_SEEDS").is_some();
+    let corpus = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus");
+    let mut failures = Vec::new();
+    for (name, start, ops) in regression_cases() {
+        for (precision, f64) in [("f32", false), ("f64", true)] {
+            let bytes = fuzz_input::encode(start, f64, &ops);
+            let input = fuzz_input::decode(&bytes).expect("an encoded case decodes");
+            assert_eq!(input.f64, f64);
+            // The decoding is the driver's, the same for every estimator:
+            // the navigator in estimated mode (the most state) checks it.
+            let case = (start, &ops[..]);
+            let flown = if f64 {
+                same(f64_::nav_estimated, case, &input)
+            } else {
+                same(f32_::nav_estimated, case, &input)
+            };
+            if let Err(e) = flown {
+                failures.push(format!("{name} {precision}: {e}"));
+            }
+            for target in FUZZ_TARGETS {
+                let path = corpus
+                    .join(target)
+                    .join(format!("regression-{name}-{precision}"));
+                if write {
+                    std::fs::write(&path, &bytes).expect("write the seed");
+                } else if std::fs::read(&path).ok().as_ref() != Some(&bytes) {
+                    failures.push(format!(
+                        "{} differs or is missing: DELAYNAV_WRITE_FUZZ_SEEDS=1 writes it",
+                        path.display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }

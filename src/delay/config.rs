@@ -388,7 +388,11 @@ impl<T: Scalar> DelayLoopConfig<T> {
         let period_us = grid_period_us(self.correlation_rate_hz);
         let shift_lo = signed_grid_samples(self.fusion.delay_min_s, period_us);
         let shift_hi = signed_grid_samples(self.fusion.delay_max_s, period_us);
-        let offset = usize::try_from(-shift_lo.min(0)).unwrap_or(usize::MAX);
+        let offset = shift_lo
+            .min(0)
+            .checked_neg()
+            .and_then(|v| usize::try_from(v).ok())
+            .unwrap_or(usize::MAX);
         if offset > PENDING_GPS_SAMPLES / 2 {
             // A negative delay reaches at most `PENDING_GPS_SAMPLES / 2`
             // grid samples (the GPS samples that can wait).
@@ -403,8 +407,8 @@ impl<T: Scalar> DelayLoopConfig<T> {
         Ok(GridSizes {
             period_us,
             buffer_len: grid_samples(self.buffer_s, period_us),
-            shift_min: usize::try_from(shift_lo + offset as i64).unwrap_or(0),
-            lags: usize::try_from(shift_hi - shift_lo + 1).unwrap_or(0),
+            shift_min: usize::try_from(shift_lo.saturating_add(offset as i64)).unwrap_or(0),
+            lags: usize::try_from(shift_hi.saturating_sub(shift_lo).saturating_add(1)).unwrap_or(0),
             offset,
             shift_lo,
             lead: lead_samples(

@@ -126,7 +126,7 @@ impl<T: Scalar> WindowSums<T> {
         }
         self.shadow_sum += entering;
         self.shadow_squares += entering_sq;
-        self.shadow_count += 1;
+        self.shadow_count = self.shadow_count.saturating_add(1);
         if self.shadow_count == window {
             self.sum = self.shadow_sum;
             self.squares = self.shadow_squares;
@@ -211,7 +211,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         check::count_within("buffer_len", buffer_len as u64, 2, BUF as u64)?;
         check::count_within("lags", lags as u64, 3, LAGS as u64)?;
         // The history holds the buffer and the largest shift.
-        let room = HIST.saturating_sub(shift_min + lags);
+        let room = HIST.saturating_sub(shift_min.saturating_add(lags));
         check::count_within("buffer_len", buffer_len as u64, 2, room as u64)?;
         self.buffer_len = buffer_len;
         self.shift_min = shift_min;
@@ -260,7 +260,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// Adds the IMU grid sample `j`. A non-consecutive index restarts both
     /// streams.
     pub fn push_x(&mut self, j: u64, x: Vector3<T>) {
-        if self.x_newest.is_some_and(|n| j != n + 1) {
+        if self.x_newest.is_some_and(|n| Some(j) != n.checked_add(1)) {
             self.reset();
         }
         self.x.push(x);
@@ -294,31 +294,39 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let Some(x_newest) = self.x_newest.filter(|&n| n >= j) else {
             return;
         };
-        if self.y_newest.is_some_and(|n| j != n + 1) {
+        if self.y_newest.is_some_and(|n| Some(j) != n.checked_add(1)) {
             self.reset_pairs();
         }
         let age = (x_newest - j) as usize;
         let mut full = self.pairs >= self.buffer_len;
-        let shift_max = self.shift_min + self.lags - 1;
-        if full && age + shift_max + self.buffer_len >= self.x.len() {
+        // No overflow: shift_min + lags <= HIST, lags >= 3 (`configure`): no wrap.
+        let shift_max = self.shift_min.wrapping_add(self.lags).wrapping_sub(1);
+        // No overflow: shift_max + buffer_len <= HIST (`configure`).
+        if full && age.saturating_add(shift_max.wrapping_add(self.buffer_len)) >= self.x.len() {
             self.reset_pairs();
             full = false;
         }
-        if age + shift_max >= self.x.len() {
+        if age.saturating_add(shift_max) >= self.x.len() {
             return;
         }
         let y_old = if full {
-            self.y.get(self.buffer_len - 1)
+            // No overflow: buffer_len >= 2 (`configure`).
+            self.y.get(self.buffer_len.wrapping_sub(1))
         } else {
             None
         };
         // `lags <= LAGS` (checked in `new`); the `min` only lets the
         // compiler drop the bounds checks below (benches/no-panic).
         for lag in 0..self.lags.min(LAGS) {
-            let s = self.shift_min + lag;
-            let x = self.x.get(age + s).unwrap_or_else(Vector3::zeros);
+            // No overflow: shift_min + lag < shift_min + lags <= HIST; age + s below x.len() (checked above).
+            let s = self.shift_min.wrapping_add(lag);
+            let x = self
+                .x
+                .get(age.wrapping_add(s))
+                .unwrap_or_else(Vector3::zeros);
             let x_old = if full {
-                self.x.get(age + s + self.buffer_len)
+                self.x
+                    .get(age.wrapping_add(s).wrapping_add(self.buffer_len))
             } else {
                 None
             };
@@ -331,8 +339,10 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 }
             }
         }
-        self.multiply_adds += (self.lags * 3 * if full { 3 } else { 2 }) as u64;
-        self.cross_shadow_count += 1;
+        self.multiply_adds = self
+            .multiply_adds
+            .saturating_add((self.lags.min(LAGS) * if full { 9 } else { 6 }) as u64);
+        self.cross_shadow_count = self.cross_shadow_count.saturating_add(1);
         if self.cross_shadow_count == self.buffer_len {
             self.cross = self.cross_shadow;
             self.cross_shadow = [[T::zero(); LAGS]; 3];
@@ -341,7 +351,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.y_sums.add(y, y_old, self.buffer_len);
         self.y.push(y);
         self.y_newest = Some(j);
-        self.pairs = (self.pairs + 1).min(self.buffer_len);
+        self.pairs = self.pairs.saturating_add(1).min(self.buffer_len);
     }
 
     /// Normalized correlation of `axis` from the window sums `(Sx, Sxx)` of
@@ -376,37 +386,48 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return None;
         }
         let age = (x_newest - y_newest) as usize;
-        let first = age + self.shift_min;
+        let first = age.saturating_add(self.shift_min);
         // Every window of the search must still be stored.
-        if first + self.lags + self.buffer_len > self.x.len() + 1 {
+        // No overflow: lags + buffer_len <= HIST and x.len() <= HIST (`configure`): no wrap.
+        if first.saturating_add(self.lags.wrapping_add(self.buffer_len))
+            > self.x.len().wrapping_add(1)
+        {
             return None;
         }
         let n = T::lit(self.buffer_len as f64);
         let x = |a: usize| self.x.get(a).unwrap_or_else(Vector3::zeros);
         // Window sums of the first shift, add-only.
         let mut window = (Vector3::zeros(), Vector3::zeros());
-        for a in first..first + self.buffer_len {
+        // No overflow: first + lags + buffer_len <= x.len() + 1 (checked above) from here on: no wrap.
+        for a in first..first.wrapping_add(self.buffer_len) {
             let v = x(a);
             window.0 += v;
             window.1 += v.component_mul(&v);
         }
         // Per axis: the best shift so far (lag, R, variance), R of the
         // shift before the best, R of the shift after it.
-        let mut best = [(0, -T::one() - T::one(), T::zero()); 3];
+        let mut best = [(0usize, -T::one() - T::one(), T::zero()); 3];
         let mut left = [T::zero(); 3];
         let mut right = [T::zero(); 3];
         let mut previous = [T::zero(); 3];
         for lag in 0..self.lags {
             if lag > 0 {
                 // Slide by one shift: the window moves one sample older.
-                let (entering, leaving) =
-                    (x(first + lag + self.buffer_len - 1), x(first + lag - 1));
+                // No overflow: first + lags + buffer_len <= x.len() + 1 (checked above).
+                let (entering, leaving) = (
+                    x(first
+                        .wrapping_add(lag)
+                        .wrapping_add(self.buffer_len)
+                        .wrapping_sub(1)),
+                    x(first.wrapping_add(lag).wrapping_sub(1)),
+                );
                 window.0 += entering - leaving;
                 window.1 += entering.component_mul(&entering) - leaving.component_mul(&leaving);
             }
             for axis in 0..3 {
                 let (r, var) = self.coefficient(&window, axis, lag);
-                if lag > 0 && best[axis].0 + 1 == lag {
+                // No overflow: best[axis].0 < lags <= LAGS.
+                if lag > 0 && best[axis].0.wrapping_add(1) == lag {
                     right[axis] = r;
                 }
                 if r > best[axis].1 {
@@ -419,7 +440,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let mut out = [AxisPeak::default(); 3];
         for (axis, peak) in out.iter_mut().enumerate() {
             let (lag, r, var) = best[axis];
-            let interior = lag > 0 && lag + 1 < self.lags;
+            // No overflow: lag < lags <= LAGS.
+            let interior = lag > 0 && lag.wrapping_add(1) < self.lags;
             let offset = if interior {
                 parabolic_offset(left[axis], r, right[axis])
             } else {
@@ -428,7 +450,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             let y_mean = self.y_sums.sum[axis] / n;
             *peak = AxisPeak {
                 peak: r,
-                shift_samples: T::lit((self.shift_min + lag) as f64) + offset,
+                // No overflow: shift_min + lag < HIST.
+                shift_samples: T::lit(self.shift_min.wrapping_add(lag) as f64) + offset,
                 accel_variance: var,
                 gps_accel_variance: (self.y_sums.squares[axis] / n - y_mean * y_mean)
                     .max(T::zero()),

@@ -153,7 +153,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let interval = (t_us - last).min(u64::from(u32::MAX));
         let nominal = (T::lit(1e6) / self.config.gps_rate_hz).as_f64() as u64;
         // Within a factor 1.5 of the configured rate: not a new rate.
-        if 2 * interval <= 3 * nominal && 3 * interval >= 2 * nominal {
+        if interval.saturating_mul(2) <= nominal.saturating_mul(3)
+            && interval.saturating_mul(3) >= nominal.saturating_mul(2)
+        {
             self.rate_votes = 0;
             return;
         }
@@ -251,8 +253,11 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             )
             .map_err(|e: Error| e.within(Section::Fusion));
         }
-        let others = sizes.shift_min + sizes.lags + sizes.lead;
-        if sizes.buffer_len + others > HIST {
+        let others = sizes
+            .shift_min
+            .saturating_add(sizes.lags)
+            .saturating_add(sizes.lead);
+        if sizes.buffer_len.saturating_add(others) > HIST {
             let limit = (HIST as f64 - others as f64) * period_s;
             return capacity(
                 "buffer_s",
@@ -362,7 +367,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         if gap {
             self.imu_grid.reset();
             self.correlator.reset();
-            self.restarts += 1;
+            self.restarts = self.restarts.saturating_add(1);
         }
         let correlator = &mut self.correlator;
         // Cannot fail: `admit_sample` refused timestamps beyond the grid's range.
@@ -400,18 +405,18 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             self.gps_grid.reset();
             self.correlator.reset_pairs();
             self.matched.reset();
-            self.restarts += 1;
+            self.restarts = self.restarts.saturating_add(1);
         }
         let (correlator, offset) = (&mut self.correlator, self.offset_samples);
         if self.config.matched_fix_intervals {
             self.matched.push_fix(t_us, velocity_ned_m_s);
         } else {
             self.gps_grid.push(t_us, velocity_ned_m_s, &mut |j, y| {
-                correlator.push_y(j + offset, y)
+                correlator.push_y(j.saturating_add(offset), y)
             });
         }
         self.last_gps_us = Some(t_us);
-        self.fixes_since_update += 1;
+        self.fixes_since_update = self.fixes_since_update.saturating_add(1);
         if self.fixes_since_update < self.config.fixes_per_update {
             return Ok(None);
         }
@@ -440,7 +445,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let buffer_s = self.config.buffer_s;
         let dt_s = self
             .last_update_us
-            .map_or(buffer_s, |last| T::lit((t_us - last) as f64 * 1e-6))
+            .map_or(buffer_s, |last| {
+                T::lit(t_us.saturating_sub(last) as f64 * 1e-6)
+            })
             .min(buffer_s);
         self.track_edges(t_us, dt_s, &peaks, &valid);
         let ms2 = T::lit(1e-6);

@@ -209,7 +209,7 @@ pub(crate) fn stencil<T: Scalar, const ORDER: usize>(
         });
     }
     let beyond = || Error::DelayBeyondHistory {
-        requested_samples: delay_samples.as_f64() as u64 + 1,
+        requested_samples: (delay_samples.as_f64() as u64).saturating_add(1),
         stored_samples: len as u64,
     };
     if len <= ORDER || delay_samples > T::lit((len - 1) as f64) {
@@ -232,7 +232,7 @@ pub(crate) fn lagrange_read<T: Scalar, const CH: usize, const ORDER: usize>(
     let mut out = SVector::<T, CH>::zeros();
     for j in 0..=ORDER {
         // s0 + j <= len - 1 by construction of the stencil.
-        if let Some(x) = get(s0 + j) {
+        if let Some(x) = get(s0.wrapping_add(j)) {
             out += x * lagrange_weight::<T, ORDER>(j, t);
         }
     }

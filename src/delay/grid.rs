@@ -61,11 +61,11 @@ impl<T: Scalar> GridResampler<T> {
         match self.previous {
             Some((tp, vp)) if t_us > tp => {
                 let span = T::lit((t_us - tp) as f64);
-                while self.next_index * period_us < t_us {
-                    let tj = self.next_index * period_us;
-                    let frac = T::lit((tj - tp) as f64) / span;
+                while self.next_index.saturating_mul(period_us) < t_us {
+                    let tj = self.next_index.saturating_mul(period_us);
+                    let frac = T::lit(tj.saturating_sub(tp) as f64) / span;
                     emit(self.next_index, vp + (v - vp) * frac);
-                    self.next_index += 1;
+                    self.next_index = self.next_index.saturating_add(1);
                 }
             }
             Some(_) => return,
@@ -194,19 +194,20 @@ impl<T: Scalar> ImuToGrid<T> {
     ) -> Result<(), Error> {
         let p = self.period_us;
         let index = grid_index(t_us, p)?;
-        let offset = t_us as i64 - (index * p) as i64;
+        // No overflow: index = round(t / p) and t <= MAX_GRID_TIME_US (`grid_index`): |offset| <= p / 2.
+        let offset = (t_us as i64).wrapping_sub(index.wrapping_mul(p) as i64);
         match &mut self.bin {
             Some((b, sum, off, n)) if *b == index => {
                 *sum += a;
-                *off += offset;
-                *n += 1;
+                *off = off.saturating_add(offset);
+                *n = n.saturating_add(1);
             }
             open => {
                 if let Some((b, sum, off, n)) = open.take() {
                     // round(off / n), half up; n >= 1 in an open bin
                     // (`max` only makes the divisor provably non-zero).
                     let n = n.max(1);
-                    let mean_t = (b * p) as i64 + rounded_mean(off, n);
+                    let mean_t = (b.saturating_mul(p) as i64).saturating_add(rounded_mean(off, n));
                     let mean = sum / T::lit(n as f64);
                     self.grid.push(mean_t.max(0) as u64, mean, emit);
                 }
@@ -222,7 +223,7 @@ impl<T: Scalar> ImuToGrid<T> {
 /// `n`, `2 sum + n` is odd and `2n` even, so the half dropped from `n / 2`
 /// never crosses a multiple of `n`), with `n` itself as the divisor.
 fn rounded_mean(sum: i64, n: i64) -> i64 {
-    (sum + n / 2).div_euclid(n)
+    sum.saturating_add(n / 2).div_euclid(n)
 }
 
 /// Largest timestamp the correlation grid accepts, us (an eighth of `u64`,
@@ -286,9 +287,9 @@ impl<T: Scalar> GpsToGrid<T> {
     ) {
         self.fixes.push((t_us, v));
         if let Some((t_old, v_old)) = self.fixes.get(self.span) {
-            let dt_s = T::lit((t_us - t_old) as f64 * 1e-6);
+            let dt_s = T::lit(t_us.saturating_sub(t_old) as f64 * 1e-6);
             let accel = (v - v_old) / dt_s;
-            let mid = t_old + (t_us - t_old) / 2;
+            let mid = t_old.saturating_add(t_us.saturating_sub(t_old) / 2);
             self.grid.push(mid, accel, emit);
         }
     }
@@ -311,7 +312,7 @@ pub(crate) fn signed_grid_samples<T: Scalar>(seconds: T, period_us: u64) -> i64 
     if samples >= 0.0 {
         (samples + 0.5) as i64
     } else {
-        -((-samples + 0.5) as i64)
+        ((-samples + 0.5) as i64).saturating_neg()
     }
 }
 
@@ -328,7 +329,7 @@ pub(crate) fn lead_samples<T: Scalar>(
     let lead_s =
         (gps_diff_span as f64 / 2.0 + 1.0) * max_gps_gap_s.as_f64() + max_imu_gap_s.as_f64();
     let samples = lead_s * 1e6 / period_us as f64;
-    samples as usize + 3
+    (samples as usize).saturating_add(3)
 }
 
 /// `v` is finite and `> 0`.
@@ -402,7 +403,7 @@ pub(crate) fn admit_sample<T: Scalar>(
         });
     }
     check_time(stream, previous_us, t_us)?;
-    Ok(previous_us.is_some_and(|p| T::lit((t_us - p) as f64 * 1e-6) > max_gap_s))
+    Ok(previous_us.is_some_and(|p| T::lit(t_us.saturating_sub(p) as f64 * 1e-6) > max_gap_s))
 }
 
 #[cfg(test)]

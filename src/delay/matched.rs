@@ -142,7 +142,7 @@ impl<T: Scalar> MatchedCorrelator<T> {
         // `period_us >= 1` (`validate_grid`); `max` only makes the divisor
         // provably positive (no reachable panic: benches/no-panic).
         let tc = (self.period_us as i64).max(1);
-        (t_us + tc / 2).div_euclid(tc)
+        t_us.saturating_add(tc / 2).div_euclid(tc)
     }
 
     /// Mean of the piecewise-constant IMU grid signal (bin `j` covers
@@ -157,14 +157,17 @@ impl<T: Scalar> MatchedCorrelator<T> {
         let tc = self.period_us as i64;
         let mut sum = Vector3::zeros();
         for j in self.bin(p)..=self.bin(q) {
-            let lo = (2 * j - 1) * tc;
-            let hi = (2 * j + 1) * tc;
-            let overlap = (2 * q).min(hi) - (2 * p).max(lo);
+            let lo = j.saturating_mul(2).saturating_sub(1).saturating_mul(tc);
+            let hi = j.saturating_mul(2).saturating_add(1).saturating_mul(tc);
+            let overlap = q
+                .saturating_mul(2)
+                .min(hi)
+                .saturating_sub(p.saturating_mul(2).max(lo));
             if overlap > 0 {
                 sum += imu(j)? * T::lit(overlap as f64);
             }
         }
-        Some(sum / T::lit((2 * (q - p)) as f64))
+        Some(sum / T::lit(q.saturating_sub(p).saturating_mul(2) as f64))
     }
 
     /// The refined correlation peak of each axis over the intervals of the
@@ -179,10 +182,10 @@ impl<T: Scalar> MatchedCorrelator<T> {
     ) -> Option<[AxisPeak<T>; 3]> {
         let tc = self.period_us as i64;
         let lags = self.lags.min(LAGS);
-        let shift_hi = self.shift_lo + lags as i64 - 1;
+        let shift_hi = self.shift_lo.saturating_add(lags as i64).saturating_sub(1);
         let covered = |k: &Interval<T>| {
-            let earliest = k.start_us as i64 - shift_hi * tc;
-            let latest = k.end_us as i64 - self.shift_lo * tc;
+            let earliest = (k.start_us as i64).saturating_sub(shift_hi.saturating_mul(tc));
+            let latest = (k.end_us as i64).saturating_sub(self.shift_lo.saturating_mul(tc));
             imu(self.bin(earliest)).is_some() && imu(self.bin(latest)).is_some()
         };
         // Newest covered interval; the window reaches a buffer back from its end.
@@ -211,8 +214,12 @@ impl<T: Scalar> MatchedCorrelator<T> {
             let mut means = [Vector3::zeros(); LAGS];
             let mut complete = true;
             for (lag, mean) in means.iter_mut().enumerate().take(lags) {
-                let s = (self.shift_lo + lag as i64) * tc;
-                match self.box_mean(k.start_us as i64 - s, k.end_us as i64 - s, &imu) {
+                let s = self.shift_lo.saturating_add(lag as i64).saturating_mul(tc);
+                match self.box_mean(
+                    (k.start_us as i64).saturating_sub(s),
+                    (k.end_us as i64).saturating_sub(s),
+                    &imu,
+                ) {
                     Some(m) => *mean = m,
                     None => complete = false,
                 }
@@ -230,7 +237,7 @@ impl<T: Scalar> MatchedCorrelator<T> {
             }
             sy += y;
             syy += y.component_mul(&y);
-            n += 1;
+            n = n.saturating_add(1);
         }
         if n < 3 {
             return None;
@@ -270,7 +277,11 @@ impl<T: Scalar> MatchedCorrelator<T> {
             let y_mean = sy[axis] / nt;
             *peak = AxisPeak {
                 peak: value,
-                shift_samples: T::lit((offset as i64 + self.shift_lo + lag as i64) as f64) + refine,
+                shift_samples: T::lit(
+                    (offset as i64)
+                        .saturating_add(self.shift_lo)
+                        .saturating_add(lag as i64) as f64,
+                ) + refine,
                 accel_variance: (sxx_lag / nt - x_mean * x_mean).max(T::zero()),
                 gps_accel_variance: (syy[axis] / nt - y_mean * y_mean).max(T::zero()),
                 interior,

@@ -102,13 +102,20 @@ impl<T: Scalar, const CH: usize> HeaderCache<T, CH> {
 
     /// The headers of block `block`, decoded by `decode` on a miss.
     fn headers(&mut self, block: u64, decode: impl FnOnce() -> [(T, T); CH]) -> [(T, T); CH] {
-        if let Some(entry) = self.entries.iter().find(|e| e.0 == block) {
-            return entry.1;
+        // Two entries, compared one by one (`find` on their iterator kept
+        // an overflow check of its count: benches/no-panic).
+        let [(b0, h0), (b1, h1)] = self.entries;
+        if b0 == block {
+            return h0;
+        }
+        if b1 == block {
+            return h1;
         }
         let entry = self.next % 2;
         let headers = decode();
         self.entries[entry] = (block, headers);
-        self.next = entry + 1;
+        // No overflow: entry < 2.
+        self.next = entry.wrapping_add(1);
         headers
     }
 }
@@ -139,7 +146,10 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
 
     /// Readable samples (at most `N`).
     pub(crate) fn len(&self) -> usize {
-        (self.blocks * BLOCK + self.staged).min(N)
+        self.blocks
+            .saturating_mul(BLOCK)
+            .saturating_add(self.staged)
+            .min(N)
     }
 
     /// Forgets every sample.
@@ -166,7 +176,7 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         // `staged < BLOCK` always; reduced so that the index is provably in
         // bounds (benches/no-panic).
         self.staging[self.staged % BLOCK] = sample;
-        self.staged += 1;
+        self.staged = self.staged.saturating_add(1);
         if self.staged >= BLOCK {
             self.seal();
         }
@@ -185,24 +195,39 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
         }
         let packed_age = age - self.staged;
         let back = packed_age / BLOCK;
-        let slot = (self.next_block + Self::SLOTS - 1 - back % Self::SLOTS) % Self::SLOTS;
+        // No overflow: next_block < SLOTS, back % SLOTS < SLOTS, and the
+        // row below is within the block `first..first + BLOCK`.
+        let slot = self
+            .next_block
+            .wrapping_add(Self::SLOTS - 1)
+            .wrapping_sub(back % Self::SLOTS)
+            % Self::SLOTS;
         let first = slot * BLOCK;
         // The newest whole block is `sealed` (0 is no block).
         let block = self.sealed.wrapping_sub(back as u64);
-        Some(Err((block, first, first + BLOCK - 1 - packed_age % BLOCK)))
+        let row = first
+            .wrapping_add(BLOCK - 1)
+            .wrapping_sub(packed_age % BLOCK);
+        Some(Err((block, first, row)))
     }
 
     /// Offsets and scales of every channel of the block starting at row
     /// `first`: side words `4c..4c + 4` of the block, low half first.
     fn headers(&self, first: usize) -> [(T, T); CH] {
-        let word = |k: usize| u32::from(self.row(first + k).side);
-        core::array::from_fn(|c| {
-            let k = 4 * c;
-            (
-                T::from_f32_exact(f32::from_bits(word(k) | word(k + 1) << 16)),
-                T::from_f32_exact(f32::from_bits(word(k + 2) | word(k + 3) << 16)),
-            )
-        })
+        // No overflow: `first` starts a block, whose rows hold the 4 CH
+        // side words (a loop, not `array::from_fn`: its counter has an
+        // overflow check).
+        let word = |k: usize| u32::from(self.row(first.wrapping_add(k)).side);
+        let mut out = [(T::ZERO, T::ZERO); CH];
+        for (c, h) in (0..CH).zip(out.iter_mut()) {
+            let k = c.wrapping_mul(4);
+            let half = |k: usize| word(k) | word(k.wrapping_add(1)) << 16;
+            *h = (
+                T::from_f32_exact(f32::from_bits(half(k))),
+                T::from_f32_exact(f32::from_bits(half(k.wrapping_add(2)))),
+            );
+        }
+        out
     }
 
     /// The packed sample in row `row`, with its block's headers.
@@ -236,7 +261,8 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
     ) -> Result<SVector<T, CH>, Error> {
         let (s0, t) = stencil::<T, ORDER>(self.len(), delay_samples)?;
         if let (Some(Err((block, first, newest_row))), Some(Err((oldest_block, ..)))) =
-            (self.locate(s0), self.locate(s0 + ORDER))
+            // No overflow: s0 <= len - 1 - ORDER (`stencil`).
+            (self.locate(s0), self.locate(s0.wrapping_add(ORDER)))
             && block == oldest_block
         {
             let headers = cache.headers(block, || self.headers(first));
@@ -339,8 +365,9 @@ impl<T: Scalar, const CH: usize, const N: usize, const BLOCK: usize> PackedRing<
                 row.mantissas[c % CH] = rounded.clamp(-MANTISSA_MAX, MANTISSA_MAX) as i16;
             }
         }
-        self.next_block = (self.next_block + 1) % Self::SLOTS;
-        self.blocks = (self.blocks + 1).min(Self::SLOTS);
+        // No overflow: next_block < SLOTS.
+        self.next_block = self.next_block.wrapping_add(1) % Self::SLOTS;
+        self.blocks = self.blocks.saturating_add(1).min(Self::SLOTS);
         self.sealed = self.sealed.wrapping_add(1);
         self.staged = 0;
     }

@@ -118,7 +118,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         };
         self.stable_since_us = Some(since);
         if self.fusion.reset(mean, variance.sqrt()).is_ok()
-            && T::lit((t_us - since) as f64 * 1e-6) >= self.config.lock_after_s
+            && T::lit(t_us.saturating_sub(since) as f64 * 1e-6) >= self.config.lock_after_s
         {
             self.locked = true;
             self.following = false;
@@ -149,12 +149,12 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
                 && p.accel_variance >= self.config.min_accel_variance_m2_s4
         }) {
             if p.interior {
-                inside += 1;
+                inside = inside.saturating_add(1);
             } else if p.shift_samples <= lower_edge {
-                below += 1;
+                below = below.saturating_add(1);
                 peak = peak.max(p.peak);
             } else {
-                above += 1;
+                above = above.saturating_add(1);
                 peak = peak.max(p.peak);
             }
         }
@@ -222,13 +222,13 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         for axis in (0..AXES).filter(|&a| valid[a]) {
             let innovation = z[axis] - tau;
             let bound = k * (p + r_buffer_s2[axis]).sqrt();
-            count += 1;
+            count = count.saturating_add(1);
             z_sum += z[axis];
             r_sum += r_buffer_s2[axis];
             if innovation > bound {
-                above += 1;
+                above = above.saturating_add(1);
             } else if innovation < -bound {
-                below += 1;
+                below = below.saturating_add(1);
             }
         }
         if count == 0 || (above != count && below != count) {
@@ -236,7 +236,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return false;
         }
         let since = *self.disagreeing_since_us.get_or_insert(t_us);
-        if T::lit((t_us - since) as f64 * 1e-6) < self.config.reacquire_after_s {
+        if T::lit(t_us.saturating_sub(since) as f64 * 1e-6) < self.config.reacquire_after_s {
             return false;
         }
         self.disagreeing_since_us = None;

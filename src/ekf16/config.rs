@@ -181,7 +181,8 @@ pub struct Ekf16Config<T: Scalar> {
     /// reset to the fix (counted in `gps_divergence_resets`).
     pub gps_nis_bound: T,
 
-    /// Longest IMU step integrated, microseconds; longer gaps are refused
+    /// Longest IMU step integrated, microseconds, in `[1, MAX_TIME_JUMP_US]`
+    /// (1 s); longer gaps are refused
     /// with [`Error::StepTooLong`] (the position carried by the velocity, the covariance grown for the
     /// unknown motion: `docs/integrity.md`).
     pub max_imu_step_us: u64,
@@ -469,7 +470,15 @@ impl<T: Scalar> Ekf16Config<T> {
             self.mag_field_learning_rate,
             T::one(),
         )?;
-        check::count_at_least("max_imu_step_us", self.max_imu_step_us, 1)?;
+        // A step longer than a time jump (`MAX_TIME_JUMP_US`, 1 s) is a gap,
+        // not a sample step: integrated, steps of 1,000 s (a configured 1e9
+        // µs) took the covariance out of f32's reach.
+        check::count_within(
+            "max_imu_step_us",
+            self.max_imu_step_us,
+            1,
+            crate::ekf16::MAX_TIME_JUMP_US,
+        )?;
         check::count_at_least("align_window", self.align_window.into(), 1)?;
         check::count_at_least("align_min_samples", self.align_min_samples.into(), 1)?;
         if self.align_min_samples > self.align_window {

@@ -111,7 +111,7 @@ use nav_core::NavCore;
 pub use nav_core::{
     GpsBlock, MAG_ALIGNING_INCLINATION_RATE, MAG_GAP_US, MAG_INFLIGHT_TILT_STD_RAD,
     MAG_THREE_AXIS_HOLD_US, MAG_THREE_AXIS_INCLINATION_TOLERANCE_RAD, MAX_GAP_NOISE_US,
-    MAX_TIME_JUMP_US,
+    MAX_TIME_JUMP_US, QUATERNION_VARIANCE_CEILING,
 };
 use state::{NAV_STATES, StateCovariance, StateVector};
 
@@ -169,7 +169,10 @@ impl MagModeHealth {
 pub struct FilterRefusals {
     /// IMU samples with a non-finite value.
     pub imu_non_finite: u32,
-    /// IMU samples above the plausible range, or whose step would make the state non-finite.
+    /// IMU samples above the plausible range, or whose step would make the state non-finite
+    /// (refused); also the steps integrated with a quaternion variance capped at
+    /// [`QUATERNION_VARIANCE_CEILING`] (a rotation per step too large for the covariance's
+    /// linearization: samples far apart at high rates).
     pub imu_out_of_range: u32,
     /// IMU samples duplicated or going back in time.
     pub imu_time: u32,

@@ -249,7 +249,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
 
     fn store(&mut self) {
         self.ring.push(self.present_entry());
-        self.pushed += 1;
+        self.pushed = self.pushed.saturating_add(1);
         self.unstored = 0;
     }
 
@@ -261,12 +261,12 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         let w = (self.last_input.0 + gyro) * half;
         let f = (self.last_input.1 + accel) * half;
         let next = process::propagate(&self.x, &w, &f, dt, gravity);
-        self.propagations += 1;
+        self.propagations = self.propagations.saturating_add(1);
         self.x = next;
         self.position += self.velocity * dt;
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
-        self.unstored += 1;
+        self.unstored = self.unstored.saturating_add(1);
         let newest = self.ring.get(0).map_or(0, |e| e.t_us);
         if t_us.saturating_sub(newest) >= self.stride_us {
             self.store();
@@ -290,7 +290,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         if i == self.pushed {
             return Some(self.present_entry());
         }
-        let age = self.pushed.checked_sub(i + 1)?;
+        let age = self.pushed.checked_sub(i.checked_add(1)?)?;
         self.ring.get(usize::try_from(age).ok()?)
     }
 
@@ -301,13 +301,13 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         self.cursor = self.cursor.max(oldest);
         // The cursor stays on stored entries; the present (index `pushed`)
         // only closes the last interval.
-        while self.cursor + 1 < self.pushed
+        while self.cursor.saturating_add(1) < self.pushed
             && self
-                .entry(self.cursor + 1)
+                .entry(self.cursor.saturating_add(1))
                 .is_some_and(|next| next.t_us <= t_h)
         {
-            self.cursor += 1;
-            self.cursor_moves += 1;
+            self.cursor = self.cursor.saturating_add(1);
+            self.cursor_moves = self.cursor_moves.saturating_add(1);
         }
         let a = self.entry(self.cursor)?;
         if a.t_us > t_h {
@@ -316,9 +316,9 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         if a.t_us == t_h {
             return Some(a);
         }
-        let b = self.entry(self.cursor + 1)?;
-        let h: T = us_to_s(b.t_us - a.t_us);
-        let s: T = us_to_s::<T>(t_h - a.t_us) / h;
+        let b = self.entry(self.cursor.saturating_add(1))?;
+        let h: T = us_to_s(b.t_us.saturating_sub(a.t_us));
+        let s: T = us_to_s::<T>(t_h.saturating_sub(a.t_us)) / h;
         let one = T::one();
         let (two, three) = (T::lit(2.0), T::lit(3.0));
         let s2 = s * s;
@@ -342,8 +342,8 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         let mut stencil = [a, b, a, a];
         let mut n = 2;
         if self.cursor > oldest
-            && let Some(e) = self.entry(self.cursor - 1)
-            && even(a.t_us - e.t_us)
+            && let Some(e) = self.entry(self.cursor.saturating_sub(1))
+            && even(a.t_us.saturating_sub(e.t_us))
         {
             stencil[n] = e;
             n += 1;
@@ -351,8 +351,8 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         // The present (index `pushed`), unless just stored: then it is the
         // newest entry.
         let newest = self.pushed.saturating_sub(u64::from(self.unstored == 0));
-        if self.cursor + 2 <= newest
-            && let Some(e) = self.entry(self.cursor + 2)
+        if self.cursor.saturating_add(2) <= newest
+            && let Some(e) = self.entry(self.cursor.saturating_add(2))
             && e.t_us > b.t_us
             && even(e.t_us - b.t_us)
         {
@@ -374,7 +374,8 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         };
         let mut q = Quaternion::new(T::zero(), T::zero(), T::zero(), T::zero());
         let mut velocity = Vector3::zeros();
-        for (i, (e, &ti)) in stencil.iter().zip(&at).enumerate() {
+        // A range, not `enumerate`: its counter has an overflow check.
+        for (i, (e, &ti)) in (0..stencil.len()).zip(stencil.iter().zip(&at)) {
             let (mut num, mut den) = (one, one);
             for (j, &tj) in at.iter().take(n).enumerate() {
                 if j != i {
@@ -419,7 +420,7 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         let Some(e) = self.at(t_h) else {
             return false;
         };
-        let span: T = us_to_s(self.t_us - t_h);
+        let span: T = us_to_s(self.t_us.saturating_sub(t_h));
         let attitude = self.rotation * e.attitude;
         let velocity = e.velocity + self.velocity;
         let position = e.position + self.position - self.velocity * span;

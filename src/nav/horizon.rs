@@ -60,13 +60,15 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             history.read::<HISTORY_ORDER>(d, headers).ok()
         };
         // Equal group delays (pass-through whitening): one read holds both.
-        let a = read(t_h + us(d_f));
+        let a = read(t_h.saturating_add(us(d_f)));
         let (w, reads) = if d_w == d_f {
             (a, 1)
         } else {
-            (read(t_h + us(d_w)), 2)
+            (read(t_h.saturating_add(us(d_w))), 2)
         };
-        self.interpolation_taps += reads * (HISTORY_ORDER as u64 + 1);
+        self.interpolation_taps = self
+            .interpolation_taps
+            .saturating_add(reads * (HISTORY_ORDER as u64 + 1));
         let (Some(a), Some(w)) = (a, w) else {
             return false;
         };
@@ -86,7 +88,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.fuse_due_mags();
             let before = self.horizon_heading();
             match self.ekf.push_imu(&sample) {
-                Ok(()) => self.horizon_steps += 1,
+                Ok(()) => self.horizon_steps = self.horizon_steps.saturating_add(1),
                 Err(_) => bump(&mut self.refusals.horizon_refused),
             }
             self.predict_yaw_gsf(before);
@@ -109,7 +111,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.fuse_due_mags();
         let heading = self.horizon_heading();
         match self.ekf.push_imu_deltas(&deltas) {
-            Ok(()) => self.horizon_steps += 1,
+            Ok(()) => self.horizon_steps = self.horizon_steps.saturating_add(1),
             Err(_) => bump(&mut self.refusals.horizon_refused),
         }
         self.predict_yaw_gsf(heading);

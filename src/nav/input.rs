@@ -51,7 +51,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             return Err(Error::not_configured());
         }
         let s = self.check_imu(imu)?;
-        let dt_us = self.last_imu.map_or(0, |p| s.t_us - p.t_us);
+        let dt_us = self.last_imu.map_or(0, |p| s.t_us.saturating_sub(p.t_us));
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
         // A step the history's sample times cannot hold (8.1 s at 530
@@ -78,7 +78,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             // A ninth long step within the span: the oldest times forgotten.
             bump(&mut self.refusals.imu_gap);
         }
-        self.imu_samples += 1;
+        self.imu_samples = self.imu_samples.saturating_add(1);
 
         if self.forward.is_started() {
             if gap {
@@ -116,7 +116,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             }
         }
         if let Some((_, _, waited)) = &mut self.pending_delay_fix {
-            *waited += 1;
+            *waited = waited.saturating_add(1);
             if !busy || *waited >= DELAY_UPDATE_MAX_WAIT {
                 self.update_delay();
             }

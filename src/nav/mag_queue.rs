@@ -58,7 +58,7 @@ impl<T: Scalar> QueuedMag<T> {
 /// returns how many samples were averaged into another.
 fn average_pairs<T: Scalar, const N: usize>(ring: &mut Ring<QueuedMag<T>, N>) -> u32 {
     let len = ring.len();
-    let mut averaged = 0;
+    let mut averaged = 0u32;
     let mut older = None;
     for k in 0..len {
         let Some(m) = ring.pop_oldest() else {
@@ -70,7 +70,7 @@ fn average_pairs<T: Scalar, const N: usize>(ring: &mut Ring<QueuedMag<T>, N>) ->
         }
         ring.push(match older.take() {
             Some(o) => {
-                averaged += 1;
+                averaged = averaged.saturating_add(1);
                 o.averaged_with(m)
             }
             None => m,
@@ -100,7 +100,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.refusals.mag_averaged = self.refusals.mag_averaged.saturating_add(averaged);
             if let (Some(oldest), Some(newest)) = (self.mags.oldest(), self.mags.get(0)) {
                 let gaps = (self.mags.len() as u64).saturating_sub(1).max(1);
-                self.mag_spacing_us = (newest.t_us - oldest.t_us) / gaps;
+                self.mag_spacing_us = newest.t_us.saturating_sub(oldest.t_us) / gaps;
             }
         }
         self.mags.push(m);

@@ -516,7 +516,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 // The largest delay at the IMU rate, with margins.
                 bound: Bound::History {
                     needed: needed as u32,
-                    short_by: (needed as usize - HIST) as u32,
+                    short_by: (needed as usize).saturating_sub(HIST) as u32,
                     delay_s: longest_s.as_f64() as f32,
                     rate_hz: config.imu_rate_hz.as_f64() as f32,
                 },

@@ -125,9 +125,10 @@ impl<const N: usize> SampleTimes<N> {
             // it is still stored, that sample and every older one are
             // forgotten.
             let age = self.pushes.wrapping_sub(self.long_steps[slot].1) as usize;
-            if age + 1 < self.len {
+            if age.saturating_add(1) < self.len {
                 self.oldest = self.time_of(age);
-                self.len = age + 1;
+                // No overflow: age + 1 < len <= N.
+                self.len = age.wrapping_add(1);
                 forgot = true;
             }
             // Below 2^32: under MAX_STEP_US (the check above).
@@ -137,21 +138,26 @@ impl<const N: usize> SampleTimes<N> {
         };
         self.pushes = self.pushes.wrapping_add(1);
         self.steps[self.head % N] = short;
-        self.head = (self.head + 1) % N;
-        if self.len == 0 || self.newest_checkpoint_age + 1 >= Self::SPACING {
+        // No overflow: head < N.
+        self.head = self.head.wrapping_add(1) % N;
+        // No overflow: newest_checkpoint_age < SPACING.
+        if self.len == 0 || self.newest_checkpoint_age.wrapping_add(1) >= Self::SPACING {
             self.checkpoints[self.next_checkpoint % CHECKPOINTS] = low_bits(t_us);
-            self.next_checkpoint = (self.next_checkpoint + 1) % CHECKPOINTS;
+            // No overflow: next_checkpoint < CHECKPOINTS.
+            self.next_checkpoint = self.next_checkpoint.wrapping_add(1) % CHECKPOINTS;
             self.newest_checkpoint_age = 0;
         } else {
-            self.newest_checkpoint_age += 1;
+            // No overflow: below SPACING - 1 here.
+            self.newest_checkpoint_age = self.newest_checkpoint_age.wrapping_add(1);
         }
         if self.len == 0 {
             self.oldest = t_us;
         } else if self.len == N {
             // The oldest sample was overwritten: the next one is the oldest.
-            self.oldest += self.step(N - 1);
+            self.oldest = self.oldest.saturating_add(self.step(N - 1));
         }
-        self.len = (self.len + 1).min(N);
+        // No overflow: len <= N.
+        self.len = self.len.wrapping_add(1).min(N);
         self.newest = t_us;
         forgot
     }
@@ -163,7 +169,8 @@ impl<const N: usize> SampleTimes<N> {
     /// The step from the sample of age `age + 1` to the one of age `age`.
     #[inline(always)]
     fn step(&self, age: usize) -> u64 {
-        let short = self.steps[(self.head + 2 * N - 1 - age % N) % N];
+        // No overflow: head < N and age % N < N: the index is in [N, 3 N).
+        let short = self.steps[self.head.wrapping_add(2 * N - 1).wrapping_sub(age % N) % N];
         if short < u16::MAX {
             u64::from(short)
         } else {
@@ -190,15 +197,26 @@ impl<const N: usize> SampleTimes<N> {
 
     /// Checkpoints stored: those of an age below `len`.
     fn checkpoint_count(&self) -> usize {
-        (self.len + Self::SPACING - 1 - self.newest_checkpoint_age) / Self::SPACING
+        // No overflow: len <= N and newest_checkpoint_age < SPACING: no wrap.
+        self.len
+            .wrapping_add(Self::SPACING - 1)
+            .wrapping_sub(self.newest_checkpoint_age)
+            / Self::SPACING
     }
 
     /// The age and time of checkpoint `i` (0: the newest).
     fn checkpoint(&self, i: usize) -> (usize, u64) {
-        let slot = (self.next_checkpoint + CHECKPOINTS - 1 - i % CHECKPOINTS) % CHECKPOINTS;
+        // No overflow: next_checkpoint < CHECKPOINTS and i % CHECKPOINTS < CHECKPOINTS.
+        let slot = self
+            .next_checkpoint
+            .wrapping_add(CHECKPOINTS - 1)
+            .wrapping_sub(i % CHECKPOINTS)
+            % CHECKPOINTS;
         let behind = low_bits(self.newest).wrapping_sub(self.checkpoints[slot]);
         (
-            self.newest_checkpoint_age + i * Self::SPACING,
+            // No overflow: i < checkpoint_count(): the age is below len <= N.
+            self.newest_checkpoint_age
+                .wrapping_add(i.wrapping_mul(Self::SPACING)),
             self.newest.saturating_sub(u64::from(behind)),
         )
     }
@@ -223,11 +241,13 @@ impl<const N: usize> SampleTimes<N> {
         // the newest sample at or before t.
         let (mut lo, mut hi) = (0, self.checkpoint_count());
         while lo < hi {
-            let mid = lo + (hi - lo) / 2;
+            // No overflow: lo < hi <= CHECKPOINTS.
+            let mid = lo.wrapping_add(hi.wrapping_sub(lo) / 2);
             if self.checkpoint(mid).1 <= t_us {
                 hi = mid;
             } else {
-                lo = mid + 1;
+                // No overflow: mid < hi.
+                lo = mid.wrapping_add(1);
             }
         }
         let (mut age, mut t_k) = if lo < self.checkpoint_count() {
@@ -238,13 +258,14 @@ impl<const N: usize> SampleTimes<N> {
         // t < newest: a newer sample exists.
         while age > 0 {
             let span = self.step(age - 1);
-            if t_k + span > t_us {
+            if t_k.saturating_add(span) > t_us {
                 let span = (span > 0).then_some(span)?;
                 return Some(
-                    T::lit(age as f64) - T::lit((t_us - t_k) as f64) / T::lit(span as f64),
+                    T::lit(age as f64)
+                        - T::lit(t_us.saturating_sub(t_k) as f64) / T::lit(span as f64),
                 );
             }
-            t_k += span;
+            t_k = t_k.saturating_add(span);
             age -= 1;
         }
         None

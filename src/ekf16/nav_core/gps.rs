@@ -199,7 +199,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         let (sum, count) = &mut self.gps_nis[i];
         *sum += record.test_ratio * gate;
-        *count += 1;
+        *count = count.saturating_add(1);
         if *count < window {
             return None;
         }

@@ -213,6 +213,57 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
     }
 }
 
+/// Largest variance of a quaternion component, a dimensionless ceiling.
+///
+/// A unit quaternion's components lie in `[-1, 1]`, and an attitude error
+/// of standard deviation `σ` (rad, at most pi: the initial attitude standard
+/// deviations are bounded so) gives its components a variance near
+/// `(σ/2)² <= pi²/4 ≈ 2.47`: 4 is above every meaningful figure. The
+/// second-order transition of the attitude covariance,
+/// `I + Ω dt/2 + (Ω dt/2)²/2`, grows it by `sqrt(1 + θ⁴/64)` per step of
+/// rotation `θ = |w| dt`: negligible at an IMU rate (`θ` of milliradians),
+/// but samples a quarter second apart at 30 rad/s grew the quaternion's
+/// variances to 1e11 within a dozen steps, and a GPS fix then left a
+/// negative variance in `f32`. The ceiling keeps `P` where the updates
+/// stay sound; each step that needs it is counted in
+/// `FilterRefusals::imu_out_of_range` (`cap_quaternion_variance`).
+pub const QUATERNION_VARIANCE_CEILING: f64 = 4.0;
+
+/// Caps the quaternion's variances at [`QUATERNION_VARIANCE_CEILING`]:
+/// row and column `i` of a variance `P_ii` above it are scaled by
+/// `sqrt(ceiling / P_ii)`, so `P_ii` becomes the ceiling and the
+/// correlations are kept (`P <- D P D` with `D` diagonal and positive: `P`
+/// stays symmetric positive semi-definite). True when a variance was
+/// capped (the caller counts it).
+fn cap_quaternion_variance<T: Scalar, const N: usize>(p: &mut SMatrix<T, N, N>) -> bool {
+    let ceiling = T::lit(QUATERNION_VARIANCE_CEILING);
+    let columns = &mut p.data.0;
+    let mut capped = false;
+    // Indices below the arrays' lengths (N >= 16): no failing bounds check.
+    #[allow(clippy::needless_range_loop)]
+    for i in QUAT..QUAT + 4 {
+        let v = columns[i][i];
+        if v > ceiling {
+            let scale = (ceiling / v).sqrt();
+            for j in 0..N {
+                columns[j][i] *= scale;
+                columns[i][j] *= scale;
+            }
+            // Exactly the ceiling (the diagonal was scaled twice).
+            columns[i][i] = ceiling;
+            capped = true;
+        }
+    }
+    capped
+}
+
+/// Every variance of `p` is zero or positive (not negative, not NaN).
+fn variances_not_negative<T: Scalar, const N: usize>(p: &SMatrix<T, N, N>) -> bool {
+    (0..N)
+        .zip(p.data.0.iter())
+        .all(|(j, column)| column.get(j).is_none_or(|v| *v >= T::zero()))
+}
+
 /// Whether a fix's position is geodetic, checked against the kind of the
 /// first accepted fix (`first`: `Some(true)` geodetic, `Some(false)` NED):
 /// one run cannot mix them (a geodetic fix after NED ones would silently

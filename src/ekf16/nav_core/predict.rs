@@ -159,7 +159,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 );
                 let mut x = self.x;
                 self.carry_over_gap(&mut x, &mut p, dt);
-                if all_finite_fixed(&p) && all_finite_fixed(&x) {
+                if cap_quaternion_variance(&mut p) {
+                    bump(&mut self.refusals.imu_out_of_range);
+                }
+                if all_finite_fixed(&p) && all_finite_fixed(&x) && variances_not_negative(&p) {
                     self.p = p;
                     self.x = x;
                 }
@@ -209,12 +212,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let mut x = self.x;
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
         project_quaternion_covariance(&mut p, &x);
-        if !(all_finite_fixed(&x) && all_finite_fixed(&p)) {
+        if !(all_finite_fixed(&x) && all_finite_fixed(&p) && variances_not_negative(&p)) {
             bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
                 field: "imu",
-                reason: "the step would make the state non-finite",
+                reason: "the step would make the state non-finite or a variance negative",
             });
+        }
+        // Integrated, with the quaternion's variances capped and counted.
+        if cap_quaternion_variance(&mut p) {
+            bump(&mut self.refusals.imu_out_of_range);
         }
         self.x = x;
         self.p = p;
