@@ -71,6 +71,11 @@ log171() {
   done
   replay "$data" --from 75 --to 225 --estimator all --add-gps-delay 0.2 --add-delay-from 150 \
     --json "$out/log171-step.json" "${hand_tuned[@]}" --quiet || return 1
+  # Yaw without the magnetometer, from 30 s after the take-off (84.668 s) to the window's end.
+  replay "$data/log171.bin" --estimator proposed --from 114.668 --no-mag \
+    --json "$out/log171-no-mag.json" --quiet || return 1
+  replay "$data/log171.bin" --estimator proposed --from 114.668 \
+    --json "$out/log171-with-mag-from-114.json" --quiet || return 1
 }
 step log171 log171
 step faults reproduce --faults --json "$out/faults.json"
