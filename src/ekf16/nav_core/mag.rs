@@ -82,12 +82,23 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             MagMode::NoFusion
         } else if c.mag_three_axis
             && ((inclination_agrees && self.mag_clean_us >= MAG_THREE_AXIS_HOLD_US)
-                || self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD))
+                || self.aligning_in_motion())
         {
             MagMode::ThreeAxis
         } else {
             MagMode::HeadingOnly
         }
+    }
+
+    /// Whether the filter is aligning in motion, so that a consistent
+    /// sample is fused 3-axis at once: the tilt less certain than
+    /// [`MAG_INFLIGHT_TILT_STD_RAD`] and than `mag_tilt_alignment_std_rad`
+    /// (+inf there keeps the magnetometer from correcting the tilt of an
+    /// aligning filter, as its documentation says).
+    fn aligning_in_motion(&self) -> bool {
+        let tilt_std = self.tilt_std();
+        tilt_std > T::lit(MAG_INFLIGHT_TILT_STD_RAD)
+            && tilt_std > self.config.mag_tilt_alignment_std_rad
     }
 
     /// The 3-axis update: the measured direction `m_b / |m_b|` against

@@ -463,6 +463,7 @@ mod tests {
                 "gps_position_fused",
                 "gps_velocity_fused",
                 "health",
+                "integrity",
                 "mag_fused",
                 "mag_gated",
                 "non_finite_estimates",
@@ -486,6 +487,8 @@ mod tests {
         assert_eq!(v["samples_refused"], 3);
         assert_eq!(v["refused_by_kind"], json!({"StepTooLong": 3}));
         assert_eq!(v["velocity_rms_m_s"], Value::Null);
+        // No scored sample in this report: no levels.
+        assert_eq!(v["integrity"], Value::Null);
         assert_eq!(v["reference_samples_scored"], 5);
         assert_eq!(v["delay_step"]["settled_after_s"], Value::Null);
         assert_eq!(v["delay_step"]["target_s"], 0.4963);
