@@ -1514,3 +1514,58 @@ fn fuzz_seeds_are_the_regression_cases() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// The long fuzz runs' findings (`fuzz/findings/TARGET-PRECISION-WHAT`, the
+/// raw inputs libFuzzer saved) fly clean through the machine: each input
+/// decoded as its target decodes it, through the estimator its name gives,
+/// in the input's precision, with every check of the machine after every
+/// call. A finding that fails here is an open bug.
+#[test]
+fn fuzz_findings_fly_clean() {
+    fn fly<T: Scalar, S: Subject<T>>(
+        make: fn() -> S,
+        input: &fuzz_input::Input,
+    ) -> Result<(), String> {
+        replay(make(), input.start.calm_ms(), &input.ops)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/findings");
+    let mut failures = Vec::new();
+    let mut flown = 0;
+    for entry in std::fs::read_dir(&dir).expect("fuzz/findings is in the repository") {
+        let path = entry.expect("a directory entry").path();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default()
+            .to_owned();
+        let bytes = std::fs::read(&path).expect("read the finding");
+        let Some(input) = fuzz_input::decode(&bytes) else {
+            failures.push(format!(
+                "{name}: does not decode (not a finding of these targets)"
+            ));
+            continue;
+        };
+        let target = FUZZ_TARGETS
+            .into_iter()
+            .find(|t| name.starts_with(&format!("{t}-")));
+        let result = match (target, input.f64) {
+            (Some("nav_estimated"), false) => fly(f32_::nav_estimated, &input),
+            (Some("nav_estimated"), true) => fly(f64_::nav_estimated, &input),
+            (Some("nav_fixed"), false) => fly(f32_::nav_fixed, &input),
+            (Some("nav_fixed"), true) => fly(f64_::nav_fixed, &input),
+            (Some("ekf16"), false) => fly(f32_::ekf16, &input),
+            (Some("ekf16"), true) => fly(f64_::ekf16, &input),
+            (Some("aekf17"), false) => fly(f32_::aekf17, &input),
+            (Some("aekf17"), true) => fly(f64_::aekf17, &input),
+            _ => Err("the name does not start with a target's".into()),
+        };
+        flown += 1;
+        if let Err(e) = result {
+            failures.push(format!("{name}: {e}"));
+        }
+    }
+    assert!(flown >= 3, "the findings are missing ({flown} flown)");
+    assert!(failures.is_empty(), "{failures:#?}");
+}

@@ -211,6 +211,26 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
             columns[QUAT + r][QUAT + c] = v;
         }
     }
+    // The subtraction's rounding: a component whose variance is zero in
+    // exact arithmetic (pitched 90 degrees, q = (c, 0, s, 0): q1 and q3
+    // carry none of the roll-yaw error left) comes out at +-1e-12 in `f32`.
+    // A variance within rounding of zero below it (at most 64 epsilons of
+    // the block's trace) is that zero: it is set so, with its row and
+    // column (a principal submatrix of a PSD matrix padded with zeros stays
+    // PSD). A larger negative one is left for the callers' checks to refuse.
+    let trace = (0..4).fold(T::zero(), |acc, r| acc + columns[QUAT + r][QUAT + r].abs());
+    let rounding = T::lit(64.0) * T::EPS * trace;
+    for r in 0..4 {
+        let v = columns[QUAT + r][QUAT + r];
+        if v < T::zero() && -v <= rounding {
+            for column in columns.iter_mut() {
+                column[QUAT + r] = T::zero();
+            }
+            for v in columns[QUAT + r].iter_mut() {
+                *v = T::zero();
+            }
+        }
+    }
 }
 
 /// Largest variance of a quaternion component, a dimensionless ceiling.
