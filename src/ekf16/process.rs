@@ -374,6 +374,37 @@ impl<T: Scalar> TransitionBlocks<T> {
         }
     }
 
+    /// Rows q of `M = A P`: `A_qq P_q + A_qbw P_bw` (`P_s` the rows of
+    /// state block `s`), entry by entry without temporaries.
+    #[inline(never)]
+    fn rows_q<const N: usize>(&self, p: &SMatrix<T, N, N>) -> SMatrix<T, 4, N> {
+        SMatrix::from_fn(|r, j| {
+            block_product(&self.qq, p, QUAT, r, j) + block_product(&self.q_bw, p, GYRO_BIAS, r, j)
+        })
+    }
+
+    /// Rows r of `M = A P`: `P_r + P_v dt + A_rq P_q + A_rbf P_bf`.
+    #[inline(never)]
+    fn rows_r<const N: usize>(&self, p: &SMatrix<T, N, N>) -> SMatrix<T, 3, N> {
+        SMatrix::from_fn(|r, j| {
+            p[(POS + r, j)]
+                + p[(VEL + r, j)] * self.dt
+                + block_product(&self.r_q, p, QUAT, r, j)
+                + block_product(&self.r_bf, p, ACCEL_BIAS, r, j)
+        })
+    }
+
+    /// Rows v of `M = A P`: `P_v + A_vq P_q + A_vbf P_bf + A_vbw P_bw`.
+    #[inline(never)]
+    fn rows_v<const N: usize>(&self, p: &SMatrix<T, N, N>) -> SMatrix<T, 3, N> {
+        SMatrix::from_fn(|r, j| {
+            p[(VEL + r, j)]
+                + block_product(&self.v_q, p, QUAT, r, j)
+                + block_product(&self.v_bf, p, ACCEL_BIAS, r, j)
+                + block_product(&self.v_bw, p, GYRO_BIAS, r, j)
+        })
+    }
+
     /// `(M A^T)[:, q]` for a block row `m` of `M = A P`.
     fn col_q<const R: usize, const N: usize>(&self, m: &SMatrix<T, R, N>) -> SMatrix<T, R, 4> {
         m.fixed_columns::<4>(QUAT) * self.qq.transpose()
@@ -395,6 +426,25 @@ impl<T: Scalar> TransitionBlocks<T> {
             + m.fixed_columns::<3>(ACCEL_BIAS) * self.v_bf.transpose()
             + m.fixed_columns::<3>(GYRO_BIAS) * self.v_bw.transpose()
     }
+}
+
+/// Entry `(r, j)` of `a P[i0..i0 + K, :]`, summed in the order of
+/// nalgebra's product of fixed-size matrices (`k = 0` first, each term
+/// added to the sum so far): the same bits as the product, without its
+/// `R x N` temporary.
+#[inline(always)]
+fn block_product<T: Scalar, const R: usize, const K: usize, const N: usize>(
+    a: &SMatrix<T, R, K>,
+    p: &SMatrix<T, N, N>,
+    i0: usize,
+    r: usize,
+    j: usize,
+) -> T {
+    let mut sum = a[(r, 0)] * p[(i0, j)];
+    for k in 1..K {
+        sum = a[(r, k)] * p[(i0 + k, j)] + sum;
+    }
+    sum
 }
 
 /// Writes the block row `m` (`R x N`, rows `i0..i0 + R`) of `A P` against
@@ -432,30 +482,113 @@ pub fn predict_covariance<T: Scalar, const N: usize>(
     config: &Ekf16Config<T>,
     extra_intensity: &SVector<T, N>,
 ) -> SMatrix<T, N, N> {
+    let mut out = *p;
+    predict_covariance_in_place(&mut out, x, gyro, accel, dt, config, extra_intensity);
+    out
+}
+
+/// [`predict_covariance`] written over `p` (the same numbers, no copy of
+/// `P`): the block rows of `A P` are computed from `p` before any of it
+/// changes. Not inlined, and the block rows in functions of their own, so
+/// that their temporaries share no frame with the caller's (the push stack
+/// of a firmware; `docs/PERFORMANCE.md`).
+#[inline(never)]
+pub(crate) fn predict_covariance_in_place<T: Scalar, const N: usize>(
+    p: &mut SMatrix<T, N, N>,
+    x: &StateVector<T>,
+    gyro: &Vector3<T>,
+    accel: &Vector3<T>,
+    dt: T,
+    config: &Ekf16Config<T>,
+    extra_intensity: &SVector<T, N>,
+) {
     const { assert!(N >= NAV_STATES) };
     let jac = JacobianBlocks::new(x, gyro, accel);
     let a = TransitionBlocks::new(&jac, dt);
     // M = A P on the ten rows A changes (q, r, v); the other rows of A P are P's.
-    let p_q = p.fixed_rows::<4>(QUAT);
-    let p_v = p.fixed_rows::<3>(VEL);
-    let p_bf = p.fixed_rows::<3>(ACCEL_BIAS);
-    let p_bw = p.fixed_rows::<3>(GYRO_BIAS);
-    let m_q: SMatrix<T, 4, N> = a.qq * p_q + a.q_bw * p_bw;
-    let m_r: SMatrix<T, 3, N> = p.fixed_rows::<3>(POS) + p_v * dt + a.r_q * p_q + a.r_bf * p_bf;
-    let m_v: SMatrix<T, 3, N> = p_v + a.v_q * p_q + a.v_bf * p_bf + a.v_bw * p_bw;
+    let m_q = a.rows_q(p);
+    let m_r = a.rows_r(p);
+    let m_v = a.rows_v(p);
     // A P A^T: the unchanged states among themselves keep P; against the
     // changed ones it is M; among the changed ones M A^T, lower block
     // triangle computed and mirrored.
-    let mut out = *p;
-    set_against_unchanged(&mut out, QUAT, &m_q);
-    set_against_unchanged(&mut out, POS, &m_r);
-    set_against_unchanged(&mut out, VEL, &m_v);
-    put_symmetric_block(&mut out, QUAT, QUAT, &a.col_q(&m_q), false);
-    put_symmetric_block(&mut out, POS, QUAT, &a.col_q(&m_r), false);
-    put_symmetric_block(&mut out, POS, POS, &a.col_r(&m_r), false);
-    put_symmetric_block(&mut out, VEL, QUAT, &a.col_q(&m_v), false);
-    put_symmetric_block(&mut out, VEL, POS, &a.col_r(&m_v), false);
-    put_symmetric_block(&mut out, VEL, VEL, &a.col_v(&m_v), false);
-    add_noise_blocks(&mut out, &jac, x, dt, config, extra_intensity);
-    out
+    set_against_unchanged(p, QUAT, &m_q);
+    set_against_unchanged(p, POS, &m_r);
+    set_against_unchanged(p, VEL, &m_v);
+    put_symmetric_block(p, QUAT, QUAT, &a.col_q(&m_q), false);
+    put_symmetric_block(p, POS, QUAT, &a.col_q(&m_r), false);
+    put_symmetric_block(p, POS, POS, &a.col_r(&m_r), false);
+    put_symmetric_block(p, VEL, QUAT, &a.col_q(&m_v), false);
+    put_symmetric_block(p, VEL, POS, &a.col_r(&m_v), false);
+    put_symmetric_block(p, VEL, VEL, &a.col_v(&m_v), false);
+    add_noise_blocks(p, &jac, x, dt, config, extra_intensity);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `A P` on the rows of q, r and v as nalgebra's products compute it
+    /// (the code the entry-by-entry block rows replaced for the push stack).
+    fn rows_by_products<T: Scalar, const N: usize>(
+        a: &TransitionBlocks<T>,
+        p: &SMatrix<T, N, N>,
+    ) -> (SMatrix<T, 4, N>, SMatrix<T, 3, N>, SMatrix<T, 3, N>) {
+        let p_q = p.fixed_rows::<4>(QUAT);
+        let p_v = p.fixed_rows::<3>(VEL);
+        let p_bf = p.fixed_rows::<3>(ACCEL_BIAS);
+        let p_bw = p.fixed_rows::<3>(GYRO_BIAS);
+        (
+            a.qq * p_q + a.q_bw * p_bw,
+            p.fixed_rows::<3>(POS) + p_v * a.dt + a.r_q * p_q + a.r_bf * p_bf,
+            p_v + a.v_q * p_q + a.v_bf * p_bf + a.v_bw * p_bw,
+        )
+    }
+
+    /// A deterministic pseudo-random number in `[-1, 1)` (xorshift64*).
+    fn next(state: &mut u64) -> f64 {
+        *state ^= *state >> 12;
+        *state ^= *state << 25;
+        *state ^= *state >> 27;
+        let bits = state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
+        2.0 * (bits as f64 / (1u64 << 53) as f64) - 1.0
+    }
+
+    /// The block rows computed entry by entry are the products' bits, and
+    /// the covariance predicted in place is the returned one's.
+    fn block_rows_are_the_products_bits<T: Scalar, const N: usize>(seed: u64) {
+        let mut s = seed;
+        for _ in 0..50 {
+            let mut x = StateVector::<T>::from_fn(|_, _| T::lit(next(&mut s)));
+            let q = x.fixed_rows::<4>(QUAT).normalize();
+            x.fixed_rows_mut::<4>(QUAT).copy_from(&q);
+            let gyro = Vector3::from_fn(|_, _| T::lit(next(&mut s)));
+            let accel = Vector3::from_fn(|_, _| T::lit(10.0 * next(&mut s)));
+            let l = SMatrix::<T, N, N>::from_fn(|_, _| T::lit(next(&mut s)));
+            let p = l * l.transpose();
+            let p = (p + p.transpose()) * T::lit(0.5);
+            let dt = T::lit(0.001 + 0.01 * next(&mut s).abs());
+            let a = TransitionBlocks::new(&JacobianBlocks::new(&x, &gyro, &accel), dt);
+            let (m_q, m_r, m_v) = rows_by_products(&a, &p);
+            assert_eq!(a.rows_q(&p), m_q);
+            assert_eq!(a.rows_r(&p), m_r);
+            assert_eq!(a.rows_v(&p), m_v);
+            let config = Ekf16Config::<T>::default();
+            let extra = SVector::<T, N>::from_fn(|_, _| T::lit(next(&mut s).abs()));
+            let out = predict_covariance(&p, &x, &gyro, &accel, dt, &config, &extra);
+            let mut in_place = p;
+            predict_covariance_in_place(&mut in_place, &x, &gyro, &accel, dt, &config, &extra);
+            assert_eq!(out, in_place);
+        }
+    }
+
+    fn block_rows_16<T: Scalar>() {
+        block_rows_are_the_products_bits::<T, 16>(0x9e37_79b9_7f4a_7c15);
+    }
+
+    fn block_rows_17<T: Scalar>() {
+        block_rows_are_the_products_bits::<T, 17>(0x2545_f491_4f6c_dd1d);
+    }
+
+    tests_in_both_precisions!(block_rows_16, block_rows_17);
 }

@@ -46,6 +46,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// state unchanged: non-finite, implausible, not later than the previous
     /// sample. A gap longer than the EKF's `max_imu_step_us` restarts the
     /// history and returns [`Error::StepTooLong`] after keeping the sample.
+    #[inline(never)]
     fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
         if !self.configured {
             return Err(Error::not_configured());
@@ -133,6 +134,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
     /// Fuses the fix at the horizon at once; its velocity goes to the delay
     /// loop at a later IMU sample (module docs). Refused, state unchanged: invalid values,
     /// a velocity beyond the loop's plausible range, time not increasing.
+    #[inline(never)]
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
         if !self.configured {
             return Err(Error::not_configured());
@@ -229,6 +231,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
 
     /// Queues the sample until the horizon reaches its time (module docs).
     /// Refused, state unchanged: non-finite or zero field, time not increasing.
+    #[inline(never)]
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
         if !self.configured {
             return Err(Error::not_configured());

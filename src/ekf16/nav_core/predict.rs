@@ -142,40 +142,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         accel: &Vector3<T>,
     ) -> Result<(), Error> {
         if dt_us > self.config.max_imu_step_us {
-            if self.initialized {
-                // A gap adds the noise of at most `MAX_GAP_NOISE_US`: beyond
-                // it the state is unknown anyway, and larger variances leave
-                // the range a later update can handle in floating point.
-                let mut p = self.p;
-                let dt = us_to_s(dt_us.min(MAX_GAP_NOISE_US));
-                process::add_process_noise(
-                    &mut p,
-                    &self.nav_state(),
-                    gyro,
-                    accel,
-                    dt,
-                    &self.config,
-                    &self.extra_intensity,
-                );
-                let mut x = self.x;
-                self.carry_over_gap(&mut x, &mut p, dt);
-                if cap_quaternion_variance(&mut p) {
-                    bump(&mut self.refusals.imu_out_of_range);
-                }
-                if all_finite_fixed(&p) && all_finite_fixed(&x) && variances_not_negative(&p) {
-                    self.p = p;
-                    self.x = x;
-                }
-            } else {
-                self.accumulate_accel(&s.accel_m_s2);
-            }
-            self.imu_clock_us = Some(s.t_us);
-            self.last_imu = Some(s);
-            bump(&mut self.refusals.imu_step_too_long);
-            return Err(Error::StepTooLong {
-                dt_us,
-                max_us: self.config.max_imu_step_us,
-            });
+            return self.gap(s, dt_us, gyro, accel);
         }
         if !self.initialized {
             self.imu_clock_us = Some(s.t_us);
@@ -184,6 +151,55 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             return Ok(());
         }
         self.predict(s, dt_us, gyro, accel, accel)
+    }
+
+    /// A step longer than `max_imu_step_us` ([`step`](Self::step)): the
+    /// noise of the gap added (at most `MAX_GAP_NOISE_US` of it) when
+    /// initialized, the clock moved, counted, `StepTooLong`. Rare, and out
+    /// of line so that its copy of `P` is not in the frame of every step.
+    #[cold]
+    #[inline(never)]
+    fn gap(
+        &mut self,
+        s: Imu<T>,
+        dt_us: u64,
+        gyro: &Vector3<T>,
+        accel: &Vector3<T>,
+    ) -> Result<(), Error> {
+        if self.initialized {
+            // A gap adds the noise of at most `MAX_GAP_NOISE_US`: beyond
+            // it the state is unknown anyway, and larger variances leave
+            // the range a later update can handle in floating point.
+            let mut p = self.p;
+            let dt = us_to_s(dt_us.min(MAX_GAP_NOISE_US));
+            process::add_process_noise(
+                &mut p,
+                &self.nav_state(),
+                gyro,
+                accel,
+                dt,
+                &self.config,
+                &self.extra_intensity,
+            );
+            let mut x = self.x;
+            self.carry_over_gap(&mut x, &mut p, dt);
+            if cap_quaternion_variance(&mut p) {
+                bump(&mut self.refusals.imu_out_of_range);
+            }
+            if all_finite_fixed(&p) && all_finite_fixed(&x) && variances_not_negative(&p) {
+                self.p = p;
+                self.x = x;
+            }
+        } else {
+            self.accumulate_accel(&s.accel_m_s2);
+        }
+        self.imu_clock_us = Some(s.t_us);
+        self.last_imu = Some(s);
+        bump(&mut self.refusals.imu_step_too_long);
+        Err(Error::StepTooLong {
+            dt_us,
+            max_us: self.config.max_imu_step_us,
+        })
     }
 
     /// The prediction of [`step`](Self::step): the state with `accel`
@@ -200,8 +216,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     ) -> Result<(), Error> {
         let dt: T = us_to_s(dt_us);
         let x16 = process::propagate(&self.nav_state(), gyro, accel, dt, self.config.gravity_m_s2);
-        let mut p = process::predict_covariance(
-            &self.p,
+        let mut p = self.p;
+        process::predict_covariance_in_place(
+            &mut p,
             &self.nav_state(),
             gyro,
             jacobian_accel,
