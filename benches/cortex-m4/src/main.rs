@@ -54,9 +54,11 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln};
 use delaynav::nav::HISTORY_ORDER;
+#[cfg(not(feature = "nav-only"))]
+use delaynav::{AugmentedEkf17, AugmentedEkf17Config, Ekf16};
 use delaynav::{
-    AugmentedEkf17, AugmentedEkf17Config, DelayCompensatedNav, DelayCompensatedNavConfig,
-    DelayMode, Ekf16, Ekf16Config, Error, Gps, GpsPosition, Imu, Mag, Navigator,
+    DelayCompensatedNav, DelayCompensatedNavConfig, DelayMode, Ekf16Config, Error, Gps,
+    GpsPosition, Imu, Mag, Navigator,
 };
 use nalgebra::Vector3;
 
@@ -236,6 +238,7 @@ trait Subject: Navigator<f32> + Sized {
     fn configure(&mut self, task: &Task) -> Result<(), Error>;
 }
 
+#[cfg(not(feature = "nav-only"))]
 impl Subject for Ekf16<f32> {
     const BLANK: Self = Ekf16::BLANK;
     fn configure(&mut self, _: &Task) -> Result<(), Error> {
@@ -243,6 +246,7 @@ impl Subject for Ekf16<f32> {
     }
 }
 
+#[cfg(not(feature = "nav-only"))]
 impl Subject for AugmentedEkf17<f32> {
     const BLANK: Self = AugmentedEkf17::BLANK;
     fn configure(&mut self, task: &Task) -> Result<(), Error> {
@@ -732,9 +736,12 @@ fn main() -> ! {
         EVENTS.len()
     );
     match name {
+        #[cfg(not(feature = "nav-only"))]
         "ekf16_f32" => launch::<Ekf16<f32>>(),
+        #[cfg(not(feature = "nav-only"))]
         "aekf17_f32" => launch::<AugmentedEkf17<f32>>(),
-        _ => launch_nav(ms),
+        "nav_estimated_f32" | "nav_fixed_f32" => launch_nav(ms),
+        _ => unsupported(),
     }
 }
 
