@@ -38,6 +38,11 @@
 //!   after the last IMU sample (`report.py --check` requires it, and no more
 //!   refusals than limits.json allows).
 //!
+//! Built with the feature `nav-only`, the image holds the navigator alone
+//! (`ekf16_f32` and `aekf17_f32` are then unknown names): the layout of a
+//! firmware that embeds only `DelayCompensatedNav`, whose frames LLVM
+//! inlines differently (`run` reports its figures apart).
+//!
 //! Output lines (semihosting): `INFO ...`, then one of `RESULT ...`,
 //! `OVERFLOW ...` (did not fit) or `FAULT ...`/`PANIC ...` (a failure);
 //! every figure as `key=value`.
