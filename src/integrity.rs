@@ -43,6 +43,9 @@ use nalgebra::{Matrix2, Matrix3, Quaternion, SMatrix, UnitQuaternion};
 /// Default integrity risk per epoch.
 pub const DEFAULT_INTEGRITY_RISK: f64 = 1e-3;
 
+/// Default of [`IntegrityConfig::gps_latency_allowance_s`], s.
+pub const DEFAULT_GPS_LATENCY_ALLOWANCE_S: f64 = 0.4;
+
 /// The integrity risk and the alert limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -62,6 +65,13 @@ pub struct IntegrityConfig<T: Scalar> {
     pub velocity_alert_limit_m_s: T,
     /// Delay alert limit, s [default: 0.1].
     pub delay_alert_limit_s: T,
+    /// The GPS latency, s, that the levels of an estimator fusing fixes as current
+    /// ([`Ekf16`](crate::Ekf16)) allow for, in `[0, 1]` [default: 0.4, the upper end of a
+    /// cheap receiver's delay]: its position and velocity levels rise by the motion over that
+    /// time ([`ekf16::latency`](crate::ekf16::latency)); 0 when the fixes' timestamps are
+    /// their times of validity. The navigator and `AugmentedEkf17` estimate the delay and
+    /// ignore it.
+    pub gps_latency_allowance_s: T,
 }
 
 impl<T: Scalar> IntegrityConfig<T> {
@@ -74,6 +84,7 @@ impl<T: Scalar> IntegrityConfig<T> {
         vertical_alert_limit_m: T::ZERO,
         velocity_alert_limit_m_s: T::ZERO,
         delay_alert_limit_s: T::ZERO,
+        gps_latency_allowance_s: T::ZERO,
     };
 
     /// The risk in `(0, 0.5)`, every alert limit positive (`+inf` allowed: never alert).
@@ -111,6 +122,14 @@ impl<T: Scalar> IntegrityConfig<T> {
         ] {
             crate::error::check::positive(field, v)?;
         }
+        let allowance = self.gps_latency_allowance_s;
+        if !(allowance >= T::zero() && allowance <= T::one()) {
+            return bad(
+                "integrity.gps_latency_allowance_s",
+                allowance,
+                "must be in [0, 1] s",
+            );
+        }
         Ok(())
     }
 }
@@ -125,6 +144,7 @@ impl<T: Scalar> Default for IntegrityConfig<T> {
             vertical_alert_limit_m: T::lit(15.0),
             velocity_alert_limit_m_s: T::lit(2.0),
             delay_alert_limit_s: T::lit(0.1),
+            gps_latency_allowance_s: T::lit(DEFAULT_GPS_LATENCY_ALLOWANCE_S),
         }
     }
 }
@@ -413,6 +433,13 @@ mod tests {
                 ..IntegrityConfig::default()
             };
             assert!(c.validate().is_err());
+        }
+        for allowance in [-0.1, 1.5, f64::NAN, f64::INFINITY] {
+            let c = IntegrityConfig {
+                gps_latency_allowance_s: T::lit(allowance),
+                ..IntegrityConfig::default()
+            };
+            assert!(c.validate().is_err(), "{allowance}");
         }
         let c = IntegrityConfig {
             velocity_alert_limit_m_s: T::lit(f64::NAN),

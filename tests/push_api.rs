@@ -375,6 +375,7 @@ fn ekf_sum(c: &FilterRefusals) -> u64 {
             gps_velocity_resets,
             gps_divergence_resets,
             gps_position_inconsistent,
+            covariance_repairs,
         }
     )
 }

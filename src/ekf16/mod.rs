@@ -86,6 +86,7 @@
 mod config;
 #[doc(hidden)]
 pub mod delta;
+pub mod latency;
 #[doc(hidden)]
 pub mod measurement;
 pub(crate) mod nav_core;
@@ -104,7 +105,7 @@ pub use state::NavState;
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::LocalFrame;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, us_to_s};
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use nalgebra::Vector3;
 use nav_core::NavCore;
@@ -216,6 +217,10 @@ pub struct FilterRefusals {
     /// GPS fixes whose position was beyond its tolerance from the integrated GPS velocity
     /// (the position-against-velocity check: the position levels raised by the offset).
     pub gps_position_inconsistent: u32,
+    /// Quaternion variances left negative by an update or a prediction (rounding: a variance
+    /// zero in exact arithmetic, or an `f32` covariance spanning too many orders of magnitude),
+    /// set to zero with their row and column (the state kept).
+    pub covariance_repairs: u32,
 }
 
 impl FilterRefusals {
@@ -240,6 +245,7 @@ impl FilterRefusals {
         gps_velocity_resets: 0,
         gps_divergence_resets: 0,
         gps_position_inconsistent: 0,
+        covariance_repairs: 0,
     };
 
     /// Field-wise sum (saturating): the counters of a filter that replaced
@@ -281,6 +287,9 @@ impl FilterRefusals {
             gps_position_inconsistent: self
                 .gps_position_inconsistent
                 .saturating_add(other.gps_position_inconsistent),
+            covariance_repairs: self
+                .covariance_repairs
+                .saturating_add(other.covariance_repairs),
         }
     }
 }
@@ -337,6 +346,8 @@ pub struct GpsReset {
 #[derive(Debug, Clone)]
 pub struct Ekf16<T: Scalar> {
     core: NavCore<T, NAV_STATES>,
+    /// The motion its levels allow for an unmodelled GPS latency ([`latency`]).
+    latency: latency::LatencyMonitor<T>,
 }
 
 impl<T: Scalar> Ekf16<T> {
@@ -345,6 +356,7 @@ impl<T: Scalar> Ekf16<T> {
     pub fn new(config: Ekf16Config<T>) -> Result<Self, Error> {
         Ok(Self {
             core: NavCore::new(config, &[])?,
+            latency: latency::LatencyMonitor::BLANK,
         })
     }
 
@@ -367,6 +379,7 @@ impl<T: Scalar> Ekf16<T> {
     /// ```
     pub const BLANK: Self = Self {
         core: NavCore::BLANK,
+        latency: latency::LatencyMonitor::BLANK,
     };
 
     /// Validates `config` and (re)starts the filter with it in place, as
@@ -374,6 +387,7 @@ impl<T: Scalar> Ekf16<T> {
     /// copy of the filter on the stack. On error the filter is left not
     /// configured: it refuses every sample.
     pub fn configure(&mut self, config: Ekf16Config<T>) -> Result<(), Error> {
+        self.latency = latency::LatencyMonitor::BLANK;
         self.core.configure(config, &[])
     }
 
@@ -393,6 +407,7 @@ impl<T: Scalar> Ekf16<T> {
         state: &NavState<T>,
         covariance: &StateCovariance<T>,
     ) -> Result<(), Error> {
+        self.latency = latency::LatencyMonitor::BLANK;
         self.core
             .configure_from_state(config, &[], t_us, &state.to_vector(), covariance)
     }
@@ -428,6 +443,7 @@ impl<T: Scalar> Ekf16<T> {
     ) -> Result<Self, Error> {
         Ok(Self {
             core: NavCore::from_state(config, &[], t_us, &state.to_vector(), covariance)?,
+            latency: latency::LatencyMonitor::BLANK,
         })
     }
 
@@ -460,7 +476,33 @@ impl<T: Scalar> Ekf16<T> {
     /// at the filter's time; otherwise (and before initialization) its last
     /// sample is pushed as an IMU sample. Refusals as for `push_imu`.
     pub fn push_imu_deltas(&mut self, deltas: &delta::ImuDeltas<T>) -> Result<(), Error> {
-        self.core.push_deltas(deltas)
+        let before = self.core.time_us();
+        self.core.push_deltas(deltas)?;
+        self.observe_motion(before);
+        Ok(())
+    }
+
+    /// Feeds the latency monitor the step just integrated (from `before`, the filter's time
+    /// before it, to now): the last sample's specific force through the estimate.
+    fn observe_motion(&mut self, before: Option<u64>) {
+        let (Some(before), Some(now), Some(imu)) =
+            (before, self.core.time_us(), self.core.last_imu())
+        else {
+            return;
+        };
+        if !self.core.is_initialized() || now <= before {
+            return;
+        }
+        let state = NavState::from_vector(self.core.state());
+        let dt = us_to_s::<T>(now - before);
+        let gravity = self.core.config().gravity_m_s2;
+        self.latency.update(
+            &state.attitude,
+            &imu.accel_m_s2,
+            &state.accel_bias_m_s2,
+            gravity,
+            dt,
+        );
     }
 
     /// [`push_gps`](Navigator::push_gps) for a fix whose time of validity
@@ -535,7 +577,10 @@ impl<T: Scalar> Ekf16<T> {
 
 impl<T: Scalar> Navigator<T> for Ekf16<T> {
     fn push_imu<I: ImuSample<T> + ?Sized>(&mut self, imu: &I) -> Result<(), Error> {
-        self.core.push_imu(imu)
+        let before = self.core.time_us();
+        self.core.push_imu(imu)?;
+        self.observe_motion(before);
+        Ok(())
     }
 
     /// Fuses position then velocity with the lever-arm models of
@@ -552,16 +597,30 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
         self.core.estimate()
     }
 
-    /// The protection levels of the covariance; no delay estimate (an infinite delay level).
+    /// The protection levels of the covariance, the position and velocity ones raised by the
+    /// motion over the configured GPS latency allowance ([`latency`]); no delay estimate (an
+    /// infinite delay level).
     fn integrity(&self) -> crate::integrity::Integrity<T> {
-        self.core.integrity(None)
+        let base = self.core.integrity(None);
+        if !self.core.is_initialized() {
+            return base;
+        }
+        let config = &self.core.config().integrity;
+        let velocity = NavState::from_vector(self.core.state()).velocity_ned_m_s;
+        let levels = self
+            .latency
+            .raise(base.levels, &velocity, config.gps_latency_allowance_s);
+        crate::integrity::Integrity {
+            resets: base.resets,
+            ..crate::integrity::Integrity::judged(levels, config, true)
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sensors::{Gps, GpsPosition};
+    use crate::sensors::{Gps, GpsPosition, Imu};
     use nalgebra::UnitQuaternion;
 
     /// The timing noise adds `sigma^2 v_i^2` to each position innovation
@@ -625,5 +684,51 @@ mod tests {
         );
     }
 
-    tests_in_both_precisions!(timing_noise_widens_the_fix);
+    /// The standalone filter's position and velocity levels carry the motion over the GPS
+    /// latency allowance: moving at 5 m/s horizontally and 1 m/s down while accelerating
+    /// 2 m/s² north, the default 0.4 s raises them against an allowance of 0 by
+    /// `0.4 * 5 + 0.08 * 2` (horizontal), `0.4 * 1 + 0.08 * 2` (vertical) and `0.4 * 2`
+    /// (velocity), within the velocity's change over the second flown.
+    fn the_levels_carry_the_latency_allowance<T: Scalar>() {
+        let lit = T::lit;
+        let start = NavState {
+            attitude: UnitQuaternion::identity(),
+            position_ned_m: Vector3::zeros(),
+            velocity_ned_m_s: Vector3::new(lit(3.0), lit(4.0), lit(1.0)),
+            accel_bias_m_s2: Vector3::zeros(),
+            gyro_bias_rad_s: Vector3::zeros(),
+        };
+        let p = StateVector::from_element(lit(1e-4));
+        let fly = |allowance: f64| {
+            let mut config = Ekf16Config::default();
+            config.integrity.gps_latency_allowance_s = lit(allowance);
+            let mut ekf = Ekf16::from_state(config, 0, &start, &p).unwrap();
+            for k in 1..=1000u64 {
+                let imu = Imu {
+                    t_us: k * 1000,
+                    gyro_rad_s: Vector3::zeros(),
+                    accel_m_s2: Vector3::new(lit(2.0), lit(0.0), lit(-9.80665)),
+                };
+                ekf.push_imu(&imu).unwrap();
+            }
+            let v = ekf.estimate().unwrap().velocity_ned_m_s;
+            (ekf.integrity().levels, v)
+        };
+        let ((with, v), (without, _)) = (fly(0.4), fly(0.0));
+        let horizontal = v.x.hypot(v.y).as_f64();
+        let near = |a: T, b: f64| (a.as_f64() - b).abs() < 2e-3;
+        assert!((horizontal - 6.4).abs() < 0.1, "{v:?}");
+        assert!(near(
+            with.horizontal_m - without.horizontal_m,
+            0.4 * horizontal + 0.16
+        ));
+        assert!(near(with.vertical_m - without.vertical_m, 0.4 + 0.16));
+        assert!(near(with.velocity_m_s - without.velocity_m_s, 0.8));
+        assert_eq!(with.tilt_deg, without.tilt_deg);
+    }
+
+    tests_in_both_precisions!(
+        timing_noise_widens_the_fix,
+        the_levels_carry_the_latency_allowance
+    );
 }

@@ -106,7 +106,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         .inspect_err(|_| bump(&mut self.refusals.not_positive_definite))?;
         if record.fused {
             self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
-            project_quaternion_covariance(&mut self.p, &self.x);
+            if project_quaternion_covariance(&mut self.p, &self.x) {
+                bump(&mut self.refusals.covariance_repairs);
+            }
         }
         Ok(record)
     }

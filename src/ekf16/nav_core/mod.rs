@@ -170,10 +170,13 @@ fn bump(counter: &mut u32) {
 /// the old tangent space is slightly off), and since `R(q) u` scales with
 /// `|q|²`, the filter would then "explain" velocity errors by a change of
 /// the quaternion's norm that renormalization throws away, and drift.
+///
+/// True when a quaternion variance came out negative and was repaired (its
+/// row and column zeroed): the caller counts it.
 fn project_quaternion_covariance<T: Scalar, const N: usize>(
     p: &mut SMatrix<T, N, N>,
     x: &SVector<T, N>,
-) {
+) -> bool {
     let q = x.fixed_rows::<4>(QUAT).into_owned();
     let q = &q.data.0[0];
     let columns = &mut p.data.0;
@@ -211,26 +214,25 @@ fn project_quaternion_covariance<T: Scalar, const N: usize>(
             columns[QUAT + r][QUAT + c] = v;
         }
     }
-    // The subtraction's rounding: a component whose variance is zero in
-    // exact arithmetic (pitched 90 degrees, q = (c, 0, s, 0): q1 and q3
-    // carry none of the roll-yaw error left) comes out at +-1e-12 in `f32`.
-    // A variance within rounding of zero below it (at most 64 epsilons of
-    // the block's trace) is that zero: it is set so, with its row and
-    // column (a principal submatrix of a PSD matrix padded with zeros stays
-    // PSD). A larger negative one is left for the callers' checks to refuse.
-    let trace = (0..4).fold(T::zero(), |acc, r| acc + columns[QUAT + r][QUAT + r].abs());
-    let rounding = T::lit(64.0) * T::EPS * trace;
+    // A quaternion variance left negative: the rounding of a variance zero in exact arithmetic
+    // (pitched 90 degrees, q = (c, 0, s, 0): q1 and q3 carry none of the error left, -1e-12
+    // in `f32`), or a block the update left slightly indefinite (an `f32` covariance spanning
+    // too many orders of magnitude). The only row and column a zero variance allows in a
+    // covariance are zero: they are set so (a principal submatrix padded with zeros), and the
+    // caller counts each (`FilterRefusals::covariance_repairs`).
+    let mut repaired = false;
     for r in 0..4 {
-        let v = columns[QUAT + r][QUAT + r];
-        if v < T::zero() && -v <= rounding {
+        if columns[QUAT + r][QUAT + r] < T::zero() {
             for column in columns.iter_mut() {
                 column[QUAT + r] = T::zero();
             }
             for v in columns[QUAT + r].iter_mut() {
                 *v = T::zero();
             }
+            repaired = true;
         }
     }
+    repaired
 }
 
 /// Largest variance of a quaternion component, a dimensionless ceiling.
@@ -682,7 +684,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.x.copy_from(x);
         self.x.fixed_rows_mut::<4>(QUAT).unscale_mut(norm);
         self.p.copy_from(p);
-        project_quaternion_covariance(&mut self.p, &self.x);
+        if project_quaternion_covariance(&mut self.p, &self.x) {
+            bump(&mut self.refusals.covariance_repairs);
+        }
         self.imu_clock_us = Some(t_us);
         self.initialized = true;
         Ok(())

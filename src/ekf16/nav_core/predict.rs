@@ -228,7 +228,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         );
         let mut x = self.x;
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
-        project_quaternion_covariance(&mut p, &x);
+        let repaired = project_quaternion_covariance(&mut p, &x);
         if !(all_finite_fixed(&x) && all_finite_fixed(&p) && variances_not_negative(&p)) {
             bump(&mut self.refusals.imu_out_of_range);
             return Err(Error::OutOfRange {
@@ -239,6 +239,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         // Integrated, with the quaternion's variances capped and counted.
         if cap_quaternion_variance(&mut p) {
             bump(&mut self.refusals.imu_out_of_range);
+        }
+        if repaired {
+            bump(&mut self.refusals.covariance_repairs);
         }
         self.x = x;
         self.p = p;

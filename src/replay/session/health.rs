@@ -49,7 +49,7 @@ impl HealthSummary {
         Self {
             refused: non_zero(fields!(c; imu_non_finite, imu_out_of_range, imu_time,
                 imu_step_too_long, imu_ahead, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
-                mag_time, not_positive_definite)),
+                mag_time, not_positive_definite, covariance_repairs)),
             gated: non_zero(fields!(c; gps_position_rejected, gps_velocity_rejected,
                 mag_rejected, mag_disturbed, gps_position_inconsistent)),
             resets: non_zero(fields!(c; gps_position_resets, gps_velocity_resets,

@@ -616,15 +616,28 @@ fn rows(jobs: &[Job], outcomes: &[RunOutcome]) -> Vec<IntegrityRow> {
         .collect();
     let mut per_estimator = serde_json::Map::new();
     for e in [Estimator::Proposed, Estimator::Ekf16, Estimator::Aekf17] {
-        let (mi, valid) = clean
+        let runs: Vec<&RunStats> = clean
             .iter()
             .filter(|(x, _)| *x == e)
-            .fold((0u64, 0u64), |(m, v), (_, s)| {
-                (m + s.mi_pairs, v + s.valid_pairs)
-            });
+            .map(|(_, s)| *s)
+            .collect();
+        let (mi, valid) = runs.iter().fold((0u64, 0u64), |(m, v), s| {
+            (m + s.mi_pairs, v + s.valid_pairs)
+        });
+        let per_quantity: Vec<f64> = (0..4)
+            .map(|q| runs.iter().map(|s| s.mi_quantity_s[q]).sum())
+            .collect();
         per_estimator.insert(
             e.name().into(),
-            json!({ "mi_pairs": mi, "valid_pairs": valid, "fraction": json_number(mi as f64 / valid as f64) }),
+            json!({
+                "mi_pairs": mi,
+                "valid_pairs": valid,
+                "fraction": json_number(mi as f64 / valid as f64),
+                "mi_tilt_s": per_quantity[0],
+                "mi_heading_s": per_quantity[1],
+                "mi_horizontal_s": per_quantity[2],
+                "mi_velocity_s": per_quantity[3],
+            }),
         );
     }
     let (mi, valid) = clean.iter().fold((0u64, 0u64), |(m, v), (_, s)| {
