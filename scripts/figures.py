@@ -766,7 +766,7 @@ NAV_MEMORY = [
     ("delay_loop", "delay loop (of which its `SlidingCorrelator<f32, 125, 31, 192>`: {corr})"),
     ("history (and its header cache)", "IMU history (16-bit block floating point, and its "
      "header cache)"),
-    ("forward (output predictor)", "output predictor (`forward`, 40 entries)"),
+    ("forward (output predictor)", "output predictor (`forward`, 39 entries)"),
     ("ekf", "`Ekf16` (the horizon filter)"),
     ("times", "sample times (16-bit steps with checkpoints)"),
     ("mags", "magnetometer queue (32 entries)"),

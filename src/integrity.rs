@@ -295,6 +295,36 @@ impl<T: Scalar> ProtectionLevels<T> {
 }
 
 impl<T: Scalar> ProtectionLevels<T> {
+    /// The levels of a state carried `span_s` seconds forward by the IMU from the state these
+    /// levels bound: an attitude error `e` turns the specific force `f` (m/s², NED), so the
+    /// carried velocity gains `|f x e| span` and the position `|f x e| span^2 / 2`, with
+    /// `|f x e| <= |f| E(t) + |f_h| E(h)` (the tilt error turns all of `f`, the heading error
+    /// only its horizontal part `f_h`), `E(x) = 2 sin(min(x, 180 deg) / 2)` the chord of the
+    /// tilt level `t` and the heading level `h`. Added to the levels, not to the covariance:
+    /// the attitude error is bounded at its level, where its effect is largest, whatever its
+    /// distribution (an alignment in motion leaves errors of tens of degrees that a
+    /// linearized variance does not carry).
+    pub fn carried(self, specific_force_m_s2: T, horizontal_m_s2: T, span_s: T) -> Self {
+        let chord = |deg: T| {
+            let half = (deg * T::lit(core::f64::consts::PI / 180.0))
+                .min(T::lit(core::f64::consts::PI))
+                * T::lit(0.5);
+            // `max` also turns a NaN level into 0; the level itself stays NaN.
+            T::lit(2.0) * half.max(T::zero()).sin()
+        };
+        let turned =
+            specific_force_m_s2 * chord(self.tilt_deg) + horizontal_m_s2 * chord(self.heading_deg);
+        let carried = turned * span_s * span_s * T::lit(0.5);
+        Self {
+            velocity_m_s: self.velocity_m_s + turned * span_s,
+            horizontal_m: self.horizontal_m + carried,
+            vertical_m: self.vertical_m + carried,
+            ..self
+        }
+    }
+}
+
+impl<T: Scalar> ProtectionLevels<T> {
     /// The heading level with the tilt's share of a magnetometer heading: a tilt error `e`
     /// turns the field's horizontal projection by up to `tan(I) e` (`I` the field's
     /// inclination), so the heading's variance gains `s^2`, `s = |tan I|` times the tilt's
@@ -424,6 +454,44 @@ mod tests {
         assert_eq!(c.tilt_deg, l.tilt_deg);
     }
 
+    /// Carried 0.2 s forward: a 10 m/s² specific force (3 m/s² of it horizontal) turned by
+    /// the levels' attitude error at its chord, added to velocity and position; an alignment
+    /// in motion's 40 deg tilt level puts the velocity past its 2 m/s alert limit.
+    fn a_carried_state_adds_the_turned_force<T: Scalar>() {
+        let l = ProtectionLevels {
+            tilt_deg: T::lit(3.0),
+            heading_deg: T::lit(10.0),
+            horizontal_m: T::lit(2.0),
+            vertical_m: T::lit(3.0),
+            velocity_m_s: T::lit(0.5),
+            delay_s: T::lit(0.01),
+        };
+        let chord = |deg: f64| 2.0 * (deg.to_radians() / 2.0).sin();
+        let turned = 10.0 * chord(3.0) + 3.0 * chord(10.0);
+        let c = l.carried(T::lit(10.0), T::lit(3.0), T::lit(0.2));
+        let close = |a: T, b: f64| (a.as_f64() - b).abs() < 1e-5 * b.max(1.0);
+        assert!(close(c.velocity_m_s, 0.5 + turned * 0.2), "{c:?}");
+        assert!(close(c.horizontal_m, 2.0 + turned * 0.02), "{c:?}");
+        assert!(close(c.vertical_m, 3.0 + turned * 0.02), "{c:?}");
+        assert_eq!(
+            (c.tilt_deg, c.heading_deg, c.delay_s),
+            (l.tilt_deg, l.heading_deg, l.delay_s)
+        );
+        let config = IntegrityConfig::<T>::default();
+        assert!(Integrity::judged(c, &config, true).velocity_valid);
+        let aligning = ProtectionLevels {
+            tilt_deg: T::lit(40.0),
+            heading_deg: T::lit(f64::INFINITY),
+            ..l
+        };
+        let c = aligning.carried(T::lit(10.0), T::lit(3.0), T::lit(0.2));
+        assert!(
+            close(c.velocity_m_s, 0.5 + (10.0 * chord(40.0) + 3.0 * 2.0) * 0.2),
+            "{c:?}"
+        );
+        assert!(!Integrity::judged(c, &config, true).velocity_valid);
+    }
+
     fn a_bad_configuration_is_refused<T: Scalar>() {
         assert!(IntegrityConfig::<T>::default().validate().is_ok());
         assert!(IntegrityConfig::<T>::ZEROED.validate().is_err());
@@ -451,6 +519,7 @@ mod tests {
     tests_in_both_precisions!(
         factors_match_the_tables,
         levels_scale_with_the_covariance,
+        a_carried_state_adds_the_turned_force,
         a_bad_configuration_is_refused
     );
 }

@@ -286,6 +286,21 @@ macro_rules! health_tests {
                 assert!((h.delay.delay_s.as_f64() - TAU).abs() < 0.01, "{h:?}");
             }
 
+            /// A start the user vouches for, an initial standard deviation within the alert
+            /// limit's reach (what an offline calibration gives), is valid before the loop has
+            /// measured, as a fixed delay is; its level is that standard deviation's.
+            #[test]
+            fn a_calibrated_start_is_valid_before_the_loop_measures() {
+                let mut c = config(DelayMode::Estimated {
+                    initial_s: 0.2 as T,
+                });
+                c.delay_loop.fusion.initial_std_s = 0.01 as T;
+                let h = DelayCompensatedNav::<T>::new(c).unwrap().health();
+                assert!(h.delay_valid && h.delay.valid_updates == 0, "{h:?}");
+                let level = h.protection_levels.delay_s.as_f64();
+                assert!(level > 0.02 && level < 0.05, "{h:?}");
+            }
+
             /// A delay that leaves the loop's range is no longer valid: after
             /// a lock at 0.2 s the GPS moves to lead the IMU by 0.15 s, below
             /// the range's 0 s edge; the status says below the range and the

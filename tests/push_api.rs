@@ -400,6 +400,7 @@ fn nav_sum(c: &NavRefusals) -> u64 {
             mag_averaged,
             horizon_refused,
             delay_loop_refused,
+            forward_corrections_missed,
         } except horizon
     )
 }

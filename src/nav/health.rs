@@ -11,9 +11,13 @@
 //!   of the horizon (a fix whose position block was refused does not make
 //!   position valid) and a standard
 //!   deviation (square root of the horizon EKF's covariance, NED axes) below
-//!   [`MAX_VELOCITY_STD_M_S`] / [`MAX_POSITION_STD_M`]. The delay is valid
-//!   in fixed mode, and in estimated mode once one loop update had a valid
-//!   axis.
+//!   [`MAX_VELOCITY_STD_M_S`] / [`MAX_POSITION_STD_M`]. The delay needs its
+//!   level within its alert limit and, estimated, the loop's estimate inside
+//!   its range. The level is the configured one in fixed mode; estimated, it
+//!   follows the loop's standard deviation, which starts at the configured
+//!   `initial_std_s`: the default start (0.3 s) is not valid until the loop has
+//!   measured, a start the user vouches for with a tight standard deviation
+//!   (an offline calibration's) is valid from the start, as a fixed delay is.
 //! - **the alignment state** ([`AlignmentState`]).
 //! - **the last reset and its cause** ([`ResetRecord`]).
 //! - **refusals per sensor and reason** ([`NavRefusals`]): the navigator's
@@ -26,12 +30,10 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
-use crate::ekf16::state::{POS, QUAT, VEL};
+use crate::ekf16::state::{POS, VEL};
 use crate::ekf16::{GpsBlock, GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
-use crate::integrity::{
-    Integrity, ProtectionLevels, attitude_error_covariance, protection_factors,
-};
+use crate::integrity::{Integrity, ProtectionLevels, protection_factors};
 use crate::scalar::{Scalar, us_to_s};
 use nalgebra::Vector3;
 
@@ -192,9 +194,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 && horizontal_std <= T::lit(MAX_POSITION_STD_M),
             vertical_valid: judged.vertical_valid && position_recent,
             delay_valid: levels.delay_s <= limits.delay_alert_limit_s
-                && (!estimated
-                    || (self.valid_delay_updates > 0
-                        && !self.delay_loop.status().is_out_of_range())),
+                && !(estimated && self.delay_loop.status().is_out_of_range()),
             protection_levels: levels,
             last_reset: self.last_reset.get(),
             refusals: self.refusals(),
@@ -217,12 +217,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// `v v^T s_tau^2` and `a a^T s_tau^2` added to the NED blocks); the delay's own level
     /// from `s_tau` (0 in fixed mode: the given delay is taken as exact); inflated by the
     /// horizon filter's innovation monitor (`src/ekf16/nav_core/integrity.rs`). The others are
-    /// unbounded before the horizon filter is initialized. Then the horizon's attitude error
-    /// carried over the span `D` to the present (`D^2 [f x] C [f x]^T` added to the velocity
-    /// block, `D^4 / 4` times it to the position block, `C` the attitude error's covariance,
-    /// `f` the present's specific force, NED), the position-against-velocity check's offset
-    /// added to the position levels, and the tilt's share of the magnetometer's heading
-    /// (docs/integrity.md).
+    /// unbounded before the horizon filter is initialized. Then the position-against-velocity
+    /// check's offset added to the position levels, the tilt's share of the magnetometer's
+    /// heading, and the horizon's attitude error, at its levels, carried over the span `D` to
+    /// the present through the present's specific force (`ProtectionLevels::carried`;
+    /// docs/integrity.md).
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -236,25 +235,17 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let v = present.velocity_ned_m_s * s;
         let a = self.present_accel * s;
         let (position, velocity) = self.ekf.nis_inflation();
-        // The horizon's attitude error carried over the span to the present: a rotation error
-        // `e` (NED, rad) turns the specific force `f`, `dv = -[f x] e span`,
-        // `dr = -[f x] e span^2 / 2`.
-        let p = self.ekf.covariance();
-        let att = attitude_error_covariance(
-            horizon.attitude.quaternion(),
-            &p.fixed_view::<4, 4>(QUAT, QUAT).into_owned(),
-        );
+        // The horizon's attitude error carried over the span to the present turns the
+        // specific force `f` (NED).
         let span: T = us_to_s(present.t_us.saturating_sub(horizon.t_us));
         let gravity = Vector3::new(T::zero(), T::zero(), self.config.ekf.gravity_m_s2);
-        let f = (self.present_accel - gravity).cross_matrix();
-        let turned = f * att * f.transpose() * (span * span);
-        let quarter = span * span * T::lit(0.25);
+        let f = self.present_accel - gravity;
         ProtectionLevels::from_covariance(
             &present.attitude,
-            p,
+            self.ekf.covariance(),
             self.config.ekf.integrity.risk,
-            &(v * v.transpose() + turned * quarter),
-            &(a * a.transpose() + turned),
+            &(v * v.transpose()),
+            &(a * a.transpose()),
             Some(s),
         )
         .inflated(position, velocity)
@@ -263,6 +254,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.ekf.heading_tilt_coupling(),
             self.config.ekf.integrity.risk,
         )
+        .carried(f.norm(), f.x.hypot(f.y), span)
     }
 
     /// The present estimate with its [`Health`] (`None` until aligned).

@@ -204,10 +204,11 @@ pub const MAG_QUEUE: usize = 32;
 
 /// Entries of the output predictor's ring (`src/nav/forward.rs`): one every
 /// stride (a time), chosen by [`DelayCompensatedNav::new`] so that the ring
-/// spans the largest delay (14 samples at 1 kHz and 0.5 s, 27 at the default
+/// spans the largest delay (14 samples at 1 kHz and 0.5 s, 28 at the default
 /// 1 s range; 32 entries, 35 samples apart, cost the `high` scenario's roll
-/// 3 %: docs/journal/2026-11-25-ram-history-and-capacities.md).
-pub const OUTPUT_ENTRIES: usize = 40;
+/// 3 %: docs/journal/2026-11-25-ram-history-and-capacities.md), and sooner
+/// while the vehicle turns fast, into slots no interpolation can use again.
+pub const OUTPUT_ENTRIES: usize = 39;
 
 /// Default history, IMU samples: a 1 s delay range at 1 kHz with margin.
 pub const DEFAULT_HISTORY: usize = 1100;
@@ -619,6 +620,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     pub fn refusals(&self) -> NavRefusals {
         NavRefusals {
             horizon: self.horizon_refusals(),
+            forward_corrections_missed: self.forward.missed_corrections(),
             ..self.refusals
         }
     }
@@ -638,6 +640,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             forward_propagations: self.forward.propagations(),
             interpolation_taps: self.interpolation_taps,
             ring_cursor_moves: self.forward.cursor_moves(),
+            ring_early_entries: u64::from(self.forward.early_entries()),
             correlation_multiply_adds: self.delay_loop.multiply_adds(),
         }
     }

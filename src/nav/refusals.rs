@@ -55,6 +55,10 @@ pub struct NavRefusals {
     pub horizon_refused: u32,
     /// Samples the delay loop refused.
     pub delay_loop_refused: u32,
+    /// Horizon states the output predictor could not compare with the present, the horizon
+    /// older than its ring's oldest entry (`src/nav/forward.rs`): the present went without
+    /// those corrections.
+    pub forward_corrections_missed: u32,
     /// The horizon filter's refusals, gates and GPS resets, over the
     /// navigator's whole life (the counters of horizon filters replaced at
     /// [`reset`](crate::nav::DelayCompensatedNav::reset) and alignment are kept).
@@ -80,6 +84,7 @@ impl NavRefusals {
         mag_averaged: 0,
         horizon_refused: 0,
         delay_loop_refused: 0,
+        forward_corrections_missed: 0,
         horizon: FilterRefusals::ZERO,
     };
 }
@@ -99,6 +104,9 @@ pub struct NavWork {
     pub interpolation_taps: u64,
     /// Moves of the output ring's cursor.
     pub ring_cursor_moves: u64,
+    /// Entries of the output ring stored before their stride was up, the vehicle turning
+    /// fast (`src/nav/forward.rs`).
+    pub ring_early_entries: u64,
     /// Products of the delay loop's sliding correlation.
     pub correlation_multiply_adds: u64,
 }

@@ -96,7 +96,8 @@ impl HealthSummary {
         let n = h.refusals;
         let own = fields!(n; imu_non_finite, imu_out_of_range, imu_time, imu_ahead,
             gps_invalid, gps_time, gps_accuracy, gps_ahead, gps_mixed_frames, mag_invalid,
-            mag_time, mag_ahead, mag_averaged, horizon_refused, delay_loop_refused);
+            mag_time, mag_ahead, mag_averaged, horizon_refused, delay_loop_refused,
+            forward_corrections_missed);
         summary.refused = prefixed("nav", non_zero(own))
             .chain(prefixed("horizon", summary.refused))
             .collect();
