@@ -273,12 +273,19 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         }
     }
 
-    /// Moves the clock to `t_us` without propagating (after an IMU gap):
-    /// the present is held and stored again at the new time.
-    pub(crate) fn hold(&mut self, t_us: u64, gyro: &Vector3<T>, accel: &Vector3<T>) {
+    /// Moves the clock to `t_us` without integrating a sample (after an IMU gap): the
+    /// present is carried by its last known motion, as the horizon filter carries its state
+    /// over the gap (`NavCore::carry_over_gap`): the position moves by the velocity over
+    /// `carried_s` s (the gap, at most `GAP_MOTION_MAX_S`), attitude and velocity stay; the
+    /// cumulative correction's position moves by its velocity over the whole gap
+    /// (`dP/dt = B`), so that the entries on both sides of the gap stay in one frame. Stored again at the new time.
+    pub(crate) fn hold(&mut self, t_us: u64, carried_s: T, gyro: &Vector3<T>, accel: &Vector3<T>) {
         if self.unstored > 0 {
             self.store();
         }
+        let r = self.x.fixed_rows::<3>(POS) + self.x.fixed_rows::<3>(VEL) * carried_s;
+        self.x.fixed_rows_mut::<3>(POS).copy_from(&r);
+        self.position += self.velocity * us_to_s::<T>(t_us.saturating_sub(self.t_us));
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
         self.store();

@@ -26,6 +26,7 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
+use crate::ekf16::nav_core::gap_growth;
 use crate::ekf16::state::{POS, QUAT, VEL};
 use crate::ekf16::{GpsBlock, GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
@@ -33,7 +34,7 @@ use crate::integrity::{
     Integrity, ProtectionLevels, attitude_error_covariance, protection_factors,
 };
 use crate::scalar::{Scalar, us_to_s};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Longest time since the last fused GPS fix for velocity and position to
 /// count as valid, µs.
@@ -222,7 +223,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// block, `D^4 / 4` times it to the position block, `C` the attitude error's covariance,
     /// `f` the present's specific force, NED), the position-against-velocity check's offset
     /// added to the position levels, and the tilt's share of the magnetometer's heading
-    /// (docs/integrity.md).
+    /// (docs/integrity.md). While the horizon filter's time is before the end of the newest
+    /// IMU gap (the first delay after it: the present is past the gap, the horizon not yet),
+    /// the growth that crossing the gap will give the horizon's covariance (the carry, the
+    /// unknown acceleration and rotation over `t_gap_end - t_h`) is added too.
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -249,14 +253,23 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let f = (self.present_accel - gravity).cross_matrix();
         let turned = f * att * f.transpose() * (span * span);
         let quarter = span * span * T::lit(0.25);
+        // The present past an IMU gap the horizon has not crossed yet: what the crossing
+        // will add (the carry and the unknown motion from the horizon to the gap's end).
+        let (gap_position, gap_velocity, gap_attitude) = if horizon.t_us < self.imu_gap_end_us {
+            gap_growth(p, us_to_s(self.imu_gap_end_us - horizon.t_us))
+        } else {
+            (Matrix3::zeros(), Matrix3::zeros(), T::zero())
+        };
+        let risk = self.config.ekf.integrity.risk;
         ProtectionLevels::from_covariance(
             &present.attitude,
             p,
-            self.config.ekf.integrity.risk,
-            &(v * v.transpose() + turned * quarter),
-            &(a * a.transpose() + turned),
+            risk,
+            &(v * v.transpose() + turned * quarter + gap_position),
+            &(a * a.transpose() + turned + gap_velocity),
             Some(s),
         )
+        .with_attitude_variance(gap_attitude, risk)
         .inflated(position, velocity)
         .with_position_bias(self.ekf.position_velocity_bias())
         .with_heading_tilt_coupling(

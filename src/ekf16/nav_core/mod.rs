@@ -61,6 +61,7 @@
 mod alignment;
 mod gps;
 mod integrity;
+pub(crate) use integrity::{GAP_MOTION_MAX_S, gap_growth};
 mod mag;
 mod predict;
 
