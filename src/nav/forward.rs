@@ -67,7 +67,8 @@
 //! above what the tests of perfect inputs allow). The present is the newest point of the
 //! interpolation without being stored: a horizon after the newest entry is
 //! read between that entry and the present, and an IMU gap stores the
-//! present on both sides of the gap.
+//! present on both sides of the gap (carried over it by its velocity,
+//! [`ForwardReckoner::hold`]).
 
 use crate::delay::ring::Ring;
 use crate::ekf16::process;
