@@ -56,11 +56,12 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let dt_us = self.last_imu.map_or(0, |p| s.t_us.saturating_sub(p.t_us));
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
-        // A step the history's sample times cannot hold (8.1 s at 530
-        // samples) restarts the history too (the EKF integrates it as usual).
         if gap {
+            // The present's levels take the gap's growth until the horizon crosses it.
             self.imu_gap_end_us = s.t_us;
         }
+        // A step the history's sample times cannot hold (8.1 s at 530
+        // samples) restarts the history too (the EKF integrates it as usual).
         if gap || dt_us >= SampleTimes::<HIST>::MAX_STEP_US {
             bump(&mut self.refusals.imu_gap);
             self.last_reset = ZeroOption::Some(ResetRecord {
