@@ -283,6 +283,23 @@ impl<T: Scalar> ProtectionLevels<T> {
 }
 
 impl<T: Scalar> ProtectionLevels<T> {
+    /// The tilt and heading levels with an isotropic attitude variance `variance_rad2` (rad^2
+    /// per axis) added to the attitude error's covariance: `t' = sqrt(t^2 + (k2 s)^2)`,
+    /// `h' = sqrt(h^2 + (k1 s)^2)` in degrees, `s` its square root (exact: `s^2 I` adds `s^2`
+    /// to both eigenvalues of the tilt block and to the heading's variance).
+    pub(crate) fn with_attitude_variance(self, variance_rad2: T, risk: T) -> Self {
+        let (k1, k2, _) = protection_factors(risk);
+        let s = variance_rad2.max(T::zero()).sqrt() * T::lit(180.0 / core::f64::consts::PI);
+        let (t, h) = (k2 * s, k1 * s);
+        Self {
+            tilt_deg: (self.tilt_deg * self.tilt_deg + t * t).sqrt(),
+            heading_deg: (self.heading_deg * self.heading_deg + h * h).sqrt(),
+            ..self
+        }
+    }
+}
+
+impl<T: Scalar> ProtectionLevels<T> {
     /// The levels with `(horizontal, vertical)` m added to the horizontal and vertical ones:
     /// an error the fixes themselves show (the position-against-velocity check's offset).
     pub fn with_position_bias(self, (horizontal, vertical): (T, T)) -> Self {

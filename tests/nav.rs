@@ -64,6 +64,43 @@ fn run_estimated<T: Scalar, const H: usize>(
     nav
 }
 
+/// Pushes one event, its refusals ignored (a gap answers `StepTooLong`); the truth after an IMU
+/// sample.
+fn push_any<T: Scalar>(nav: &mut DelayCompensatedNav<T>, event: &FlightEvent) -> Option<State> {
+    let v3 = |v: &Vector3<f64>| v.map(T::lit);
+    match event {
+        FlightEvent::Imu(s, truth) => {
+            let _ = nav.push_imu(&Imu {
+                t_us: s.t_us,
+                gyro_rad_s: v3(&s.gyro_rad_s),
+                accel_m_s2: v3(&s.accel_m_s2),
+            });
+            Some(*truth)
+        }
+        FlightEvent::Mag(m) => {
+            let _ = nav.push_mag(&Mag {
+                t_us: m.t_us,
+                field_body: v3(&m.field_body),
+            });
+            None
+        }
+        FlightEvent::Gps(g) => {
+            let _ = nav.push_gps(&Gps {
+                t_us: g.t_us,
+                position: match g.position {
+                    GpsPosition::Ned(p) => GpsPosition::Ned(v3(&p)),
+                    GpsPosition::Geodetic(_) => unreachable!("the flights are in NED"),
+                },
+                velocity_ned_m_s: v3(&g.velocity_ned_m_s),
+                horizontal_accuracy_m: None,
+                vertical_accuracy_m: None,
+                speed_accuracy_m_s: None,
+            });
+            None
+        }
+    }
+}
+
 macro_rules! nav_tests {
     ($name:ident, $t:ty, $tol:expr) => {
         mod $name {
@@ -481,6 +518,96 @@ macro_rules! nav_tests {
                 assert_eq!(e.t_us, level.t_us + 1_999_000);
                 assert!(e.position_ned_m.iter().all(|x| x.is_finite()));
                 assert_eq!(nav.refusals().imu_gap, 1);
+            }
+
+            #[test]
+            fn the_present_past_an_imu_gap_is_carried_and_its_levels_cover_the_gap() {
+                let mode = DelayMode::Estimated {
+                    initial_s: T::lit(0.1),
+                };
+                let mut nav = DelayCompensatedNav::<T>::new(config(mode, 1000.0)).unwrap();
+                let events = fly(&lively(3), &Suite::simulator(), 15.0, |_| 0.1, None);
+                let (from, to) = (12_000_000u64, 14_000_000u64);
+                let mut before: Option<Estimate<T>> = None;
+                let mut checked = 0;
+                for event in &events {
+                    if let FlightEvent::Imu(s, _) = event
+                        && (from..to).contains(&s.t_us)
+                    {
+                        continue;
+                    }
+                    let Some(truth) = push_any(&mut nav, event) else {
+                        continue;
+                    };
+                    let Some(est) = nav.estimate() else {
+                        continue;
+                    };
+                    if est.t_us < from {
+                        before = Some(est);
+                        continue;
+                    }
+                    if nav.horizon_estimate().unwrap().t_us >= to {
+                        break;
+                    }
+                    let b = before.unwrap();
+                    if checked == 0 {
+                        // Carried by the motion of before over the gap (and one step of 1 ms).
+                        let dt = (est.t_us - b.t_us) as f64 * 1e-6;
+                        let carried = f64s(&b.position_ned_m) + f64s(&b.velocity_ned_m_s) * dt;
+                        let off = (f64s(&est.position_ned_m) - carried).norm();
+                        assert!(off < 0.05 * SLACK, "{off} m from the carried position");
+                    }
+                    // The horizon has not crossed the gap: the levels take its growth.
+                    let h = nav.health();
+                    let l = h.protection_levels;
+                    assert!(!h.velocity_valid && !h.tilt_valid, "{h}");
+                    let dv = (f64s(&est.velocity_ned_m_s) - truth.v).norm();
+                    let dr = f64s(&est.position_ned_m) - truth.r;
+                    assert!(dv <= l.velocity_m_s.as_f64(), "{dv} > {:?}", l.velocity_m_s);
+                    assert!(
+                        dr.x.hypot(dr.y) <= l.horizontal_m.as_f64(),
+                        "{dr} beyond {:?}",
+                        l.horizontal_m
+                    );
+                    checked += 1;
+                }
+                assert!(checked >= 90, "{checked} samples in the first delay");
+            }
+
+            #[test]
+            fn a_decimated_imu_widens_the_horizon_filter_noise() {
+                // 1 kHz configured; from 10 s every fifth sample only (200 Hz, the
+                // per-sample noise kept): the horizon filter's attitude variance follows the
+                // 5x density (1.28 times the steady run's over 15-20 s; 0.99 when the
+                // prediction keeps the configured density).
+                let events = fly(&lively(3), &Suite::simulator(), 20.0, |_| 0.1, None);
+                let attitude_variance = |decimated: bool| {
+                    let mode = DelayMode::Estimated {
+                        initial_s: T::lit(0.1),
+                    };
+                    let mut nav = DelayCompensatedNav::<T>::new(config(mode, 1000.0)).unwrap();
+                    let (mut sum, mut n) = (0.0, 0.0);
+                    for event in &events {
+                        if let FlightEvent::Imu(s, _) = event
+                            && decimated
+                            && s.t_us >= 10_000_000
+                            && s.t_us % 5000 != 0
+                        {
+                            continue;
+                        }
+                        if push_any(&mut nav, event).is_some()
+                            && nav.estimate().is_some_and(|e| e.t_us >= 15_000_000)
+                        {
+                            let p = nav.horizon_filter().covariance();
+                            sum += (0..4).map(|i| p[(i, i)].as_f64()).sum::<f64>();
+                            n += 1.0;
+                        }
+                    }
+                    sum / n
+                };
+                let (steady, decimated) = (attitude_variance(false), attitude_variance(true));
+                let ratio = decimated / steady;
+                assert!(ratio > 1.15 && ratio < 2.3, "attitude variance ratio {ratio}");
             }
 
             #[test]

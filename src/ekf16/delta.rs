@@ -75,6 +75,8 @@ struct Sums<T: Scalar> {
     upsilon: Vector3<T>,
     coning: Vector3<T>,
     sculling: Vector3<T>,
+    /// `Σ h²` over the sample steps, s² (the white noise's share of the step, below).
+    spacing_sq: T,
 }
 
 impl<T: Scalar> Sums<T> {
@@ -83,6 +85,7 @@ impl<T: Scalar> Sums<T> {
         upsilon: zeros_const(),
         coning: zeros_const(),
         sculling: zeros_const(),
+        spacing_sq: T::ZERO,
     };
 }
 
@@ -180,7 +183,16 @@ impl<T: Scalar> DeltaAccumulator<T> {
         }
         sums.alpha += d_theta;
         sums.upsilon += d_v;
+        sums.spacing_sq += h * h;
         self.last = Some(*s);
+    }
+
+    /// `Σ h²` of the sample steps accumulated so far, s²: white noise of per-sample
+    /// variance `σ²` adds `σ² Σ h²` to the variance of `Δθ` (or `Δv`), so `Σ h² / Δt` is the
+    /// period at which its density `σ² h` is to be read (the mean period when it is steady,
+    /// more when the steps are uneven).
+    pub(crate) fn spacing_sq_s2(&self) -> T {
+        self.sums.spacing_sq
     }
 
     /// The accumulated step (`None` when it is empty), and a new step

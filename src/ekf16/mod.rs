@@ -453,6 +453,12 @@ impl<T: Scalar> Ekf16<T> {
         self.core.config()
     }
 
+    /// Multiplies the white-noise intensities of the next predictions by `scale` (at least
+    /// 1): what the navigator's horizon reads at a period other than the configured one.
+    pub(crate) fn set_imu_noise_scale(&mut self, scale: T) {
+        self.core.set_imu_noise_scale(scale);
+    }
+
     /// The state vector (eq. 1; meaningful once initialized).
     pub fn state_vector(&self) -> &StateVector<T> {
         self.core.state()

@@ -301,9 +301,13 @@ pub fn add_process_noise<T: Scalar, const N: usize>(
     extra_intensity: &SVector<T, N>,
 ) {
     let jac = JacobianBlocks::new(x, gyro, accel);
-    add_noise_blocks(p, &jac, x, dt, config, extra_intensity);
+    add_noise_blocks(p, &jac, x, dt, config, extra_intensity, T::one());
 }
 
+/// The blocks of [`add_process_noise`]; the white-noise intensities (gyro, accelerometer)
+/// multiplied by `white_scale` (at least 1: the densities are those of the configured IMU
+/// rate, and a stream read more sparsely keeps its per-sample variance, so its density is
+/// that many times larger; see `src/nav/horizon.rs`).
 fn add_noise_blocks<T: Scalar, const N: usize>(
     p: &mut SMatrix<T, N, N>,
     jac: &JacobianBlocks<T>,
@@ -311,10 +315,12 @@ fn add_noise_blocks<T: Scalar, const N: usize>(
     dt: T,
     config: &Ekf16Config<T>,
     extra_intensity: &SVector<T, N>,
+    white_scale: T,
 ) {
     let q = quaternion_of(x);
-    let sw2 = config.gyro_noise_density * config.gyro_noise_density;
-    let sf2 = config.accel_noise_density * config.accel_noise_density;
+    let white_scale = white_scale.max(T::one());
+    let sw2 = config.gyro_noise_density * config.gyro_noise_density * white_scale;
+    let sf2 = config.accel_noise_density * config.accel_noise_density * white_scale;
     let bf2 = config.accel_bias_random_walk * config.accel_bias_random_walk;
     let bw2 = config.gyro_bias_random_walk * config.gyro_bias_random_walk;
     let (d1, d2, d3) = (dt, dt * dt * T::lit(0.5), dt * dt * dt / T::lit(3.0));
@@ -483,7 +489,16 @@ pub fn predict_covariance<T: Scalar, const N: usize>(
     extra_intensity: &SVector<T, N>,
 ) -> SMatrix<T, N, N> {
     let mut out = *p;
-    predict_covariance_in_place(&mut out, x, gyro, accel, dt, config, extra_intensity);
+    predict_covariance_in_place(
+        &mut out,
+        x,
+        gyro,
+        accel,
+        dt,
+        config,
+        extra_intensity,
+        T::one(),
+    );
     out
 }
 
@@ -491,8 +506,10 @@ pub fn predict_covariance<T: Scalar, const N: usize>(
 /// `P`): the block rows of `A P` are computed from `p` before any of it
 /// changes. Not inlined, and the block rows in functions of their own, so
 /// that their temporaries share no frame with the caller's (the push stack
-/// of a firmware; `docs/PERFORMANCE.md`).
+/// of a firmware; `docs/PERFORMANCE.md`). The white-noise intensities are multiplied by
+/// `white_scale` (at least 1; [`add_noise_blocks`]).
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn predict_covariance_in_place<T: Scalar, const N: usize>(
     p: &mut SMatrix<T, N, N>,
     x: &StateVector<T>,
@@ -501,6 +518,7 @@ pub(crate) fn predict_covariance_in_place<T: Scalar, const N: usize>(
     dt: T,
     config: &Ekf16Config<T>,
     extra_intensity: &SVector<T, N>,
+    white_scale: T,
 ) {
     const { assert!(N >= NAV_STATES) };
     let jac = JacobianBlocks::new(x, gyro, accel);
@@ -521,7 +539,7 @@ pub(crate) fn predict_covariance_in_place<T: Scalar, const N: usize>(
     put_symmetric_block(p, VEL, QUAT, &a.col_q(&m_v), false);
     put_symmetric_block(p, VEL, POS, &a.col_r(&m_v), false);
     put_symmetric_block(p, VEL, VEL, &a.col_v(&m_v), false);
-    add_noise_blocks(p, &jac, x, dt, config, extra_intensity);
+    add_noise_blocks(p, &jac, x, dt, config, extra_intensity, white_scale);
 }
 
 #[cfg(test)]
@@ -577,7 +595,16 @@ mod tests {
             let extra = SVector::<T, N>::from_fn(|_, _| T::lit(next(&mut s).abs()));
             let out = predict_covariance(&p, &x, &gyro, &accel, dt, &config, &extra);
             let mut in_place = p;
-            predict_covariance_in_place(&mut in_place, &x, &gyro, &accel, dt, &config, &extra);
+            predict_covariance_in_place(
+                &mut in_place,
+                &x,
+                &gyro,
+                &accel,
+                dt,
+                &config,
+                &extra,
+                T::one(),
+            );
             assert_eq!(out, in_place);
         }
     }

@@ -73,6 +73,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.mag_at_horizon = false;
         self.geodetic_fixes = ZeroOption::None;
         self.present_accel = Vector3::zeros();
+        self.imu_gap_end_us = 0;
         self.yaw_gsf.clear();
         self.gsf_disagreements = 0;
         self.gsf_step = ([T::zero(); 2], T::zero(), 0);

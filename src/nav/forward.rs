@@ -67,14 +67,15 @@
 //! above what the tests of perfect inputs allow). The present is the newest point of the
 //! interpolation without being stored: a horizon after the newest entry is
 //! read between that entry and the present, and an IMU gap stores the
-//! present on both sides of the gap.
+//! present on both sides of the gap (carried over it by its velocity,
+//! [`ForwardReckoner::hold`]).
 //!
 //! # And sooner when the vehicle turns fast
 //!
 //! The stride is sized for the largest delay (28 ms at 1 kHz for the default 1 s range), and
 //! a flip does not fit a cubic over it: through the `high` scenario's flips (a roll rate rising
-//! to 31 rad/s and back in 0.15 s) the interpolated attitude at the horizon was off by up to
-//! 1.5 deg, and each correction carried that error into the present (tilt errors of 2 deg for
+//! to 31 rad/s and back in 0.15 s) the interpolated attitude at the horizon erred, and each
+//! correction carried that error into the present (tilt errors of 2 deg for
 //! 20-40 ms against a tilt level of 1 deg). So an entry is also stored before the stride is up
 //! once, since the newest entry, the raw rate `w` (the mean of two samples, rad/s, body frame)
 //! has turned the body by
@@ -358,12 +359,19 @@ impl<T: Scalar, const N: usize> ForwardReckoner<T, N> {
         }
     }
 
-    /// Moves the clock to `t_us` without propagating (after an IMU gap):
-    /// the present is held and stored again at the new time.
-    pub(crate) fn hold(&mut self, t_us: u64, gyro: &Vector3<T>, accel: &Vector3<T>) {
+    /// Moves the clock to `t_us` without integrating a sample (after an IMU gap): the
+    /// present is carried by its last known motion, as the horizon filter carries its state
+    /// over the gap (`NavCore::carry_over_gap`): the position moves by the velocity over
+    /// `carried_s` s (the gap, at most `GAP_MOTION_MAX_S`), attitude and velocity stay; the
+    /// cumulative correction's position moves by its velocity over the whole gap
+    /// (`dP/dt = B`), so that the entries on both sides of the gap stay in one frame. Stored again at the new time.
+    pub(crate) fn hold(&mut self, t_us: u64, carried_s: T, gyro: &Vector3<T>, accel: &Vector3<T>) {
         if self.unstored > 0 {
             self.store();
         }
+        let r = self.x.fixed_rows::<3>(POS) + self.x.fixed_rows::<3>(VEL) * carried_s;
+        self.x.fixed_rows_mut::<3>(POS).copy_from(&r);
+        self.position += self.velocity * us_to_s::<T>(t_us.saturating_sub(self.t_us));
         self.t_us = t_us;
         self.last_input = (*gyro, *accel);
         self.store();

@@ -30,12 +30,13 @@
 
 use super::{DelayCompensatedNav, NavRefusals};
 use crate::delay::DelayStatus;
+use crate::ekf16::nav_core::gap_growth;
 use crate::ekf16::state::{POS, VEL};
 use crate::ekf16::{GpsBlock, GpsReset, MagModeHealth};
 use crate::estimate::{Estimate, Navigator};
 use crate::integrity::{Integrity, ProtectionLevels, protection_factors};
 use crate::scalar::{Scalar, us_to_s};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Longest time since the last fused GPS fix for velocity and position to
 /// count as valid, µs.
@@ -217,11 +218,14 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// `v v^T s_tau^2` and `a a^T s_tau^2` added to the NED blocks); the delay's own level
     /// from `s_tau` (0 in fixed mode: the given delay is taken as exact); inflated by the
     /// horizon filter's innovation monitor (`src/ekf16/nav_core/integrity.rs`). The others are
-    /// unbounded before the horizon filter is initialized. Then the position-against-velocity
-    /// check's offset added to the position levels, the tilt's share of the magnetometer's
-    /// heading, and the horizon's attitude error, at its levels, carried over the span `D` to
-    /// the present through the present's specific force (`ProtectionLevels::carried`;
-    /// docs/integrity.md).
+    /// unbounded before the horizon filter is initialized. While the horizon filter's time is
+    /// before the end of the newest IMU gap (the first delay after it: the present is past the
+    /// gap, the horizon not yet), the growth that crossing the gap will give the horizon's
+    /// covariance (the carry, the unknown acceleration and rotation over `t_gap_end - t_h`) is
+    /// added. Then the position-against-velocity check's offset added to the position levels,
+    /// the tilt's share of the magnetometer's heading, and the horizon's attitude error, at its
+    /// levels, carried over the span `D` to the present through the present's specific force
+    /// (`ProtectionLevels::carried`; docs/integrity.md).
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -240,14 +244,24 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let span: T = us_to_s(present.t_us.saturating_sub(horizon.t_us));
         let gravity = Vector3::new(T::zero(), T::zero(), self.config.ekf.gravity_m_s2);
         let f = self.present_accel - gravity;
+        // The present past an IMU gap the horizon has not crossed yet: what the crossing
+        // will add (the carry and the unknown motion from the horizon to the gap's end).
+        let p = self.ekf.covariance();
+        let (gap_position, gap_velocity, gap_attitude) = if horizon.t_us < self.imu_gap_end_us {
+            gap_growth(p, us_to_s(self.imu_gap_end_us - horizon.t_us))
+        } else {
+            (Matrix3::zeros(), Matrix3::zeros(), T::zero())
+        };
+        let risk = self.config.ekf.integrity.risk;
         ProtectionLevels::from_covariance(
             &present.attitude,
-            self.ekf.covariance(),
-            self.config.ekf.integrity.risk,
-            &(v * v.transpose()),
-            &(a * a.transpose()),
+            p,
+            risk,
+            &(v * v.transpose() + gap_position),
+            &(a * a.transpose() + gap_velocity),
             Some(s),
         )
+        .with_attitude_variance(gap_attitude, risk)
         .inflated(position, velocity)
         .with_position_bias(self.ekf.position_velocity_bias())
         .with_heading_tilt_coupling(

@@ -7,12 +7,13 @@ use super::refusals::{bump, counted};
 use super::timeline::SampleTimes;
 use super::{DELAY_UPDATE_MAX_WAIT, DelayCompensatedNav};
 use crate::delay::MAX_INPUT_MAGNITUDE;
+use crate::ekf16::nav_core::GAP_MOTION_MAX_S;
 use crate::ekf16::nav_core::check_position_kind;
 use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, POS, VEL, quaternion_of};
 use crate::error::Error;
 use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, us_to_s};
 use crate::sensors::{GpsFix, Imu, ImuSample, MagSample, checked_gps, checked_imu, checked_mag};
 use crate::zero_option::ZeroOption;
 use nalgebra::{SVector, UnitQuaternion, Vector3};
@@ -55,6 +56,10 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         let dt_us = self.last_imu.map_or(0, |p| s.t_us.saturating_sub(p.t_us));
         let max_step = self.config.ekf.max_imu_step_us;
         let gap = dt_us > max_step;
+        if gap {
+            // The present's levels take the gap's growth until the horizon crosses it.
+            self.imu_gap_end_us = s.t_us;
+        }
         // A step the history's sample times cannot hold (8.1 s at 530
         // samples) restarts the history too (the EKF integrates it as usual).
         if gap || dt_us >= SampleTimes::<HIST>::MAX_STEP_US {
@@ -83,7 +88,9 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
 
         if self.forward.is_started() {
             if gap {
-                self.forward.hold(s.t_us, &s.gyro_rad_s, &s.accel_m_s2);
+                let carried_s = us_to_s::<T>(dt_us).min(T::lit(GAP_MOTION_MAX_S));
+                self.forward
+                    .hold(s.t_us, carried_s, &s.gyro_rad_s, &s.accel_m_s2);
             } else {
                 let g = self.config.ekf.gravity_m_s2;
                 self.forward.step(s.t_us, &s.gyro_rad_s, &s.accel_m_s2, g);

@@ -372,6 +372,10 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     /// them ([`gps_timing_noise`](Self::gps_timing_noise)).
     last_fix_velocity: Option<(u64, Vector3<T>)>,
     present_accel: Vector3<T>,
+    /// End of the newest IMU gap (the first sample after it), µs; 0 before any. Until the
+    /// horizon filter's time reaches it the present is past a gap the horizon has not
+    /// crossed, and its levels take the gap's growth (`health.rs`).
+    imu_gap_end_us: u64,
     /// The yaw estimator run from the horizon filter's predictions and the
     /// fused fixes (`yaw_gsf.rs`, `alignment.rs`).
     yaw_gsf: YawGsf<T>,
@@ -469,6 +473,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         pending_delay_fix: None,
         last_fix_velocity: None,
         present_accel: zeros_const(),
+        imu_gap_end_us: 0,
         yaw_gsf: YawGsf::BLANK,
         gsf_step: ([T::ZERO; 2], T::ZERO, 0),
         gsf_yaw_resets: 0,
@@ -566,6 +571,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.pending_delay_fix = None;
         self.last_fix_velocity = None;
         self.present_accel = Vector3::zeros();
+        self.imu_gap_end_us = 0;
         self.yaw_gsf = YawGsf::BLANK;
         self.gsf_step = ([T::zero(); 2], T::zero(), 0);
         self.gsf_yaw_resets = 0;

@@ -58,6 +58,44 @@ pub const GAP_MAX_ATTITUDE_STD_RAD: f64 = 0.35;
 /// update can handle in `f32`).
 pub const GAP_MOTION_MAX_S: f64 = 10.0;
 
+/// The motion nobody measured over an IMU gap of `dt` s (at most [`GAP_MOTION_MAX_S`]), per
+/// NED axis: `[velocity, position, their covariance, attitude]` variances, `(s_a dt)^2` (m/s)^2,
+/// `(s_a dt^2 / 2)^2` m^2, `s_a^2 dt^3 / 2` m^2/s, `min(s_w dt, s_max)^2` rad^2
+/// ([`GAP_ACCEL_STD_M_S2`], [`GAP_RATE_STD_RAD_S`], [`GAP_MAX_ATTITUDE_STD_RAD`]).
+fn gap_motion_variances<T: Scalar>(dt: T) -> [T; 4] {
+    let dt = dt.min(T::lit(GAP_MOTION_MAX_S));
+    let sa2 = T::lit(GAP_ACCEL_STD_M_S2 * GAP_ACCEL_STD_M_S2);
+    let s = (T::lit(GAP_RATE_STD_RAD_S) * dt).min(T::lit(GAP_MAX_ATTITUDE_STD_RAD));
+    [
+        sa2 * dt * dt,
+        sa2 * dt * dt * dt * dt / T::lit(4.0),
+        sa2 * dt * dt * dt / T::lit(2.0),
+        s * s,
+    ]
+}
+
+/// What crossing an IMU gap of `dt` s will add to the covariance `p` (`NavCore`'s
+/// `carry_over_gap`, without touching the state): to the NED position block
+/// `dt (P_rv + P_vr) + dt^2 P_vv` (the carry `F P F^T`, `F = I + dt E_rv`) and the unknown
+/// position, to the velocity block the unknown velocity, and the attitude variance per axis
+/// (rad^2): `(position, velocity, attitude)`. The navigator's present is past a gap its
+/// horizon filter has not crossed yet for one delay; its levels take this growth then.
+pub(crate) fn gap_growth<T: Scalar, const N: usize>(
+    p: &nalgebra::SMatrix<T, N, N>,
+    dt: T,
+) -> (Matrix3<T>, Matrix3<T>, T) {
+    let dt = dt.min(T::lit(GAP_MOTION_MAX_S));
+    let [velocity, position, _, attitude] = gap_motion_variances(dt);
+    let rv = p.fixed_view::<3, 3>(POS, VEL);
+    let vv = p.fixed_view::<3, 3>(VEL, VEL);
+    let carried = (rv + rv.transpose()) * dt + vv * (dt * dt);
+    (
+        carried + Matrix3::identity() * position,
+        Matrix3::identity() * velocity,
+        attitude,
+    )
+}
+
 /// Weight of each fused fix in the smoothed position-velocity offset (2 s at 10 Hz).
 pub const PV_SMOOTHING: f64 = 0.05;
 /// Smallest weight of a consistent fix in the track's learning of the offset (30 s at
@@ -202,6 +240,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         dt: T,
     ) {
         let dt = dt.min(T::lit(GAP_MOTION_MAX_S));
+        let [velocity, position, covariance, attitude] = gap_motion_variances(dt);
         for i in 0..3 {
             let v = x[VEL + i];
             x[POS + i] += v * dt;
@@ -216,17 +255,15 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             let mut target = p.column_mut(POS + i);
             target += column;
         }
-        let sa2 = T::lit(GAP_ACCEL_STD_M_S2 * GAP_ACCEL_STD_M_S2);
         for i in 0..3 {
-            p[(VEL + i, VEL + i)] += sa2 * dt * dt;
-            p[(POS + i, POS + i)] += sa2 * dt * dt * dt * dt / T::lit(4.0);
-            let c = sa2 * dt * dt * dt / T::lit(2.0);
-            p[(POS + i, VEL + i)] += c;
-            p[(VEL + i, POS + i)] += c;
+            p[(VEL + i, VEL + i)] += velocity;
+            p[(POS + i, POS + i)] += position;
+            p[(POS + i, VEL + i)] += covariance;
+            p[(VEL + i, POS + i)] += covariance;
         }
-        let s = (T::lit(GAP_RATE_STD_RAD_S) * dt).min(T::lit(GAP_MAX_ATTITUDE_STD_RAD));
         let q = x.fixed_rows::<4>(QUAT).normalize();
-        let tangent = (nalgebra::Matrix4::identity() - q * q.transpose()) * (s * s / T::lit(4.0));
+        let tangent =
+            (nalgebra::Matrix4::identity() - q * q.transpose()) * (attitude / T::lit(4.0));
         let mut block = p.fixed_view_mut::<4, 4>(QUAT, QUAT);
         block += tangent;
     }

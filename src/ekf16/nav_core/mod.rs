@@ -61,6 +61,7 @@
 mod alignment;
 mod gps;
 mod integrity;
+pub(crate) use integrity::{GAP_MOTION_MAX_S, gap_growth};
 mod mag;
 mod predict;
 
@@ -449,6 +450,10 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     extra_initial: SVector<T, N>,
     extra_variance: SVector<T, N>,
     extra_intensity: SVector<T, N>,
+    /// What the white-noise intensities of the next predictions are multiplied by, read as
+    /// at least 1 (0 in `BLANK`): set by the navigator from its horizon's read period
+    /// ([`set_imu_noise_scale`](Self::set_imu_noise_scale)).
+    imu_noise_scale: T,
     initialized: bool,
     imu_clock_us: Option<u64>,
     /// An IMU time refused as too far ahead, waiting for confirmation.
@@ -533,6 +538,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             extra_initial: zeros_const(),
             extra_variance: zeros_const(),
             extra_intensity: zeros_const(),
+            imu_noise_scale: T::ZERO,
             initialized: false,
             imu_clock_us: None,
             imu_candidate_us: None,
@@ -709,6 +715,14 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// The configuration.
     pub(crate) fn config(&self) -> &Ekf16Config<T> {
         &self.config
+    }
+
+    /// Multiplies the gyro and accelerometer white-noise intensities of the next predictions
+    /// by `scale` (read as at least 1; a non-finite value as 1): the densities of the
+    /// configuration hold at the configured IMU rate, and a stream read every `h` s keeps
+    /// its per-sample variance `d^2 f0`, so its density is `d^2 f0 h` (`src/nav/horizon.rs`).
+    pub(crate) fn set_imu_noise_scale(&mut self, scale: T) {
+        self.imu_noise_scale = if scale.is_finite() { scale } else { T::one() };
     }
 
     /// True once initialized (and configured: a failed `configure` leaves

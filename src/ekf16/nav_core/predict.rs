@@ -225,6 +225,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             dt,
             &self.config,
             &self.extra_intensity,
+            self.imu_noise_scale,
         );
         let mut x = self.x;
         x.fixed_rows_mut::<NAV_STATES>(0).copy_from(&x16);
