@@ -263,6 +263,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.ekf.heading_tilt_coupling(),
             self.config.ekf.integrity.risk,
         )
+        .with_magnetometer(self.ekf.mag_integrity())
     }
 
     /// The present estimate with its [`Health`] (`None` until aligned).
