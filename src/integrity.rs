@@ -324,6 +324,19 @@ impl<T: Scalar> ProtectionLevels<T> {
     }
 }
 
+impl<T: Scalar> ProtectionLevels<T> {
+    /// The levels with `(position, velocity)` (m, m/s) added to the
+    /// horizontal position and velocity levels: a tilt bias carried over a span (the
+    /// navigator's present, one delay ahead of its horizon filter).
+    pub fn with_carried_tilt_bias(self, (position, velocity): (T, T)) -> Self {
+        Self {
+            horizontal_m: self.horizontal_m + position,
+            velocity_m_s: self.velocity_m_s + velocity,
+            ..self
+        }
+    }
+}
+
 /// What an estimator vouches for, through the [`Navigator`](crate::Navigator) trait: its
 /// protection levels and, per quantity, whether it is valid (`PL <= alert limit` and the
 /// estimator's own preconditions), and the resets it made or divergences it reported.

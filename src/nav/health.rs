@@ -221,8 +221,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// carried over the span `D` to the present (`D^2 [f x] C [f x]^T` added to the velocity
     /// block, `D^4 / 4` times it to the position block, `C` the attitude error's covariance,
     /// `f` the present's specific force, NED), the position-against-velocity check's offset
-    /// added to the position levels, and the tilt's share of the magnetometer's heading
-    /// (docs/integrity.md).
+    /// added to the position levels, the tilt's share of the magnetometer's heading, and the
+    /// magnetometer monitor's (its heading factor, a field offset's turn of the heading and
+    /// the tilt, and that tilt carried over the span into the velocity and position;
+    /// docs/integrity.md).
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -248,6 +250,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let gravity = Vector3::new(T::zero(), T::zero(), self.config.ekf.gravity_m_s2);
         let f = (self.present_accel - gravity).cross_matrix();
         let turned = f * att * f.transpose() * (span * span);
+        // The field offset's turn of the tilt `t` (rad, the magnetometer monitor) turns `f` over
+        // the span too: `|f| t span` more in velocity, `|f| t span^2 / 2` in position.
+        let magnetometer = self.ekf.mag_integrity();
+        let force = (self.present_accel - gravity).norm() * magnetometer.2;
+        let carried = (force * span * span * T::lit(0.5), force * span);
         let quarter = span * span * T::lit(0.25);
         ProtectionLevels::from_covariance(
             &present.attitude,
@@ -263,7 +270,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.ekf.heading_tilt_coupling(),
             self.config.ekf.integrity.risk,
         )
-        .with_magnetometer(self.ekf.mag_integrity())
+        .with_magnetometer(magnetometer)
+        .with_carried_tilt_bias(carried)
     }
 
     /// The present estimate with its [`Health`] (`None` until aligned).

@@ -89,7 +89,6 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let nis_per_dof = record.test_ratio.min(T::one()) * gate / dof;
         let reading = mag_monitor::MagReading {
             field_body: *field_body,
-            learned_norm: self.mag_field.map_or(T::zero(), |(n, _)| n),
             fused: record.fused,
             nis_per_dof,
             dt_s: us_to_s(dt_us),

@@ -23,10 +23,12 @@
 //! `m` (body frame) by a vector that turns with the vehicle, which the heading-innovation gate
 //! cannot see (the filter's heading follows it) but the field's norm can: to first order in
 //! `|b| / |m|`, `|m_b| = |m| + b . u` (`u` the field's body direction), so the norm varies as
-//! the vehicle turns; a clean field does not. With the learned norm `n_L` (`mag_field`, an
-//! exponential mean of the fused samples' norms, weight `w = mag_field_learning_rate`) and the
-//! learned direction `u_L` (the same mean of their measured unit directions `u = m_b / |m_b|`,
-//! started at the alignment's mean direction), per sample:
+//! the vehicle turns; a clean field does not. The monitor learns the field's norm `n_L` and
+//! body direction `u_L` (the unit directions `u = m_b / |m_b|` measured) from the fused
+//! samples, started at the alignment's means of `n_0` samples: a running mean up to
+//! `1 / w` samples, then an exponential mean of weight `w` (`b_k = max(1 / k, w)` for the
+//! `k`-th sample, `w = mag_field_learning_rate`; the same weights for both, so that they are
+//! means over the same attitudes). Per sample:
 //!
 //! ```text
 //! r = |m_b| / n_L - 1,     e <- e + a (r - e),     d <- d + a (u - d)      (a = MAG_NORM_SMOOTHING)
@@ -34,9 +36,12 @@
 //! ```
 //!
 //! `e` is the smoothed relative norm residual and `|d - u_L|` the sweep of the field's body
-//! direction the residual was seen over. Without an offset `e` is the smoothed noise: with
+//! direction the residual was seen over. Without an offset `e` is noise: with
 //! `s_r = sqrt(mag_noise_variance)` (the noise of one component of the unit field, so of the
-//! norm to first order) its standard deviation is `s_e = s_r sqrt(a / (2 - a))`, and the
+//! norm to first order) the smoothed noise has the variance `s_r^2 a / (2 - a)` and the
+//! learned norm's error at most `s_r^2 max(1 / k, w)` (`k` the samples it is the mean of:
+//! exact while a running mean, above the exponential mean's `s_r^2 w / (2 - w)` after);
+//! `s_e` is the square root of their sum, and the
 //! tolerance is `k1 s_e` (`k1` the 1-D factor at the integrity risk, 3.29 at 1e-3). A sample
 //! with `|e|` beyond it is counted (`FilterRefusals::mag_field_offset`) and gives the offset a
 //! lower bound `beta_k = (|e| - k1 s_e) / max(|d - u_L|, MAG_MIN_SWEEP)` (the norm moved beyond
@@ -76,14 +81,16 @@ pub(crate) struct MagMonitor<T: Scalar> {
     learned_direction: Vector3<T>,
     /// Smoothed body direction `d`.
     direction: Vector3<T>,
+    /// Learned field norm `n_L`, sensor units (0: not started).
+    learned_norm: T,
     /// Smoothed relative norm residual `e`.
     residual: T,
     /// Held relative offset `beta`, in `[0, 1]`.
     offset: T,
     /// Mean NIS per degree of freedom `nu`.
     nis_mean: T,
-    /// Variance of the learned norm's relative error `v_L` (unit field squared).
-    learned_variance: T,
+    /// Samples the learned norm and direction are the mean of (saturating).
+    learned_count: u32,
 }
 
 /// One magnetometer sample as the monitor reads it.
@@ -91,9 +98,7 @@ pub(crate) struct MagMonitor<T: Scalar> {
 pub(crate) struct MagReading<T: Scalar> {
     /// The calibrated body field, sensor units.
     pub field_body: Vector3<T>,
-    /// The learned field norm `n_L`, sensor units (positive).
-    pub learned_norm: T,
-    /// Whether the sample was fused (it then teaches the learned direction).
+    /// Whether the sample was fused (it then teaches the learned norm and direction).
     pub fused: bool,
     /// Its NIS per degree of freedom, at most its gate's (module docs).
     pub nis_per_dof: T,
@@ -102,36 +107,37 @@ pub(crate) struct MagReading<T: Scalar> {
 }
 
 impl<T: Scalar> MagMonitor<T> {
-    /// Not started: no direction learned, no offset, the NIS mean at its expectation.
+    /// Not started: nothing learned, no offset, the NIS mean at its expectation.
     pub(crate) const EMPTY: Self = Self {
         learned_direction: zeros_const(),
         direction: zeros_const(),
+        learned_norm: T::ZERO,
         residual: T::ZERO,
         offset: T::ZERO,
         nis_mean: T::ONE,
-        learned_variance: T::ZERO,
+        learned_count: 0,
     };
 
-    /// Started at the learned direction `direction` (the alignment's mean body direction),
-    /// the learned norm's relative error of variance `learned_variance` (`s_r^2 / n` for the
-    /// mean of `n` samples).
-    pub(crate) fn started_at(direction: &Vector3<T>, learned_variance: T) -> Self {
-        let u = if direction.norm() > T::zero() {
-            direction.normalize()
-        } else {
-            zeros_const()
-        };
+    /// Started at the mean of `count` samples (the alignment's): `direction` the mean of
+    /// their body unit directions, `norm` of their norms.
+    pub(crate) fn started_at(direction: &Vector3<T>, norm: T, count: u32) -> Self {
+        if !(direction.norm() > T::zero() && norm > T::zero()) {
+            return Self::EMPTY;
+        }
+        let u = direction.normalize();
         Self {
             learned_direction: u,
             direction: u,
-            learned_variance,
+            learned_norm: norm,
+            learned_count: count.max(1),
             ..Self::EMPTY
         }
     }
 
-    /// One sample `s`; `learning_rate` the learned field's weight `w`, `noise_variance` the
-    /// configured `mag_noise_variance` (unit field squared), `k1` the 1-D factor at the
-    /// integrity risk. Returns whether the norm residual was beyond its tolerance.
+    /// One sample `s`; `learning_rate` the least weight `w` of a sample in the learned norm
+    /// and direction, `noise_variance` the configured `mag_noise_variance` (unit field
+    /// squared), `k1` the 1-D factor at the integrity risk. Returns whether the norm residual
+    /// was beyond its tolerance.
     pub(crate) fn update(
         &mut self,
         s: &MagReading<T>,
@@ -143,28 +149,31 @@ impl<T: Scalar> MagMonitor<T> {
             self.nis_mean += (s.nis_per_dof - self.nis_mean) * T::lit(MAG_NIS_MEAN_WEIGHT);
         }
         let norm = s.field_body.norm();
-        if !(norm > T::zero() && s.learned_norm > T::zero()) {
+        if !(norm > T::zero() && norm.is_finite()) {
             return false;
         }
         let u = s.field_body / norm;
-        if self.learned_direction == Vector3::zeros() {
+        if self.learned_count == 0 {
             *self = Self {
                 nis_mean: self.nis_mean,
-                ..Self::started_at(&u, noise_variance)
+                offset: self.offset,
+                ..Self::started_at(&u, norm, 1)
             };
         }
         let a = T::lit(MAG_NORM_SMOOTHING);
-        self.residual += (norm / s.learned_norm - T::one() - self.residual) * a;
+        self.residual += (norm / self.learned_norm - T::one() - self.residual) * a;
         self.direction += (u - self.direction) * a;
-        let noise_variance = noise_variance.max(T::zero());
         if s.fused {
-            self.learned_direction += (u - self.learned_direction) * learning_rate;
-            let keep = T::one() - learning_rate;
-            self.learned_variance = keep * keep * self.learned_variance
-                + learning_rate * learning_rate * noise_variance;
+            self.learned_count = self.learned_count.saturating_add(1);
+            let b = learning_rate.max(T::one() / T::lit(f64::from(self.learned_count)));
+            self.learned_norm += (norm - self.learned_norm) * b;
+            self.learned_direction += (u - self.learned_direction) * b;
         }
+        let noise_variance = noise_variance.max(T::zero());
+        let count = T::one() / T::lit(f64::from(self.learned_count));
+        let learned = noise_variance * count.max(learning_rate);
         let smoothed = noise_variance * a / (T::lit(2.0) - a);
-        let tolerance = k1 * (smoothed + self.learned_variance).sqrt();
+        let tolerance = k1 * (smoothed + learned).sqrt();
         let excess = self.residual.abs() - tolerance;
         let decay = (T::one() - s.dt_s.max(T::zero()) / T::lit(MAG_OFFSET_MEMORY_S)).max(T::zero());
         self.offset *= decay;
@@ -251,34 +260,30 @@ mod tests {
             let (sp, cp) = pitch.sin_cos();
             [n * cp - d * sp, e, n * sp + d * cp]
         };
-        let mut m = MagMonitor::<T>::started_at(
-            &Vector3::from(field_at(0.0).map(T::lit)),
-            T::lit(NOISE / 100.0),
-        );
-        // The learned norm as the filter learns it: an exponential mean of the samples' norms
-        // from the alignment's (its noise bias `s^2 / |m|` included).
         let f0 = field_at(0.0);
         let start = (0..3)
             .map(|i| (f0[i] + offset[i]).powi(2))
             .sum::<f64>()
             .sqrt();
-        let mut learned_norm = T::lit(start + NOISE);
+        // The alignment's mean of 10 samples: its norm's noise bias `s^2 / |m|` included.
+        let mut m = MagMonitor::<T>::started_at(
+            &Vector3::from(core::array::from_fn(|i| T::lit(f0[i] + offset[i]))),
+            T::lit(start + NOISE),
+            10,
+        );
         let mut beyond = 0;
         for k in 0..(seconds * 100.0) as usize {
             let f = field_at(k as f64 * 0.01);
             let b = Vector3::from(core::array::from_fn::<T, 3, _>(|i| {
                 T::lit(f[i] + offset[i] + NOISE.sqrt() * noise.sample())
             }));
-            let norm = b.norm();
             let reading = MagReading {
                 field_body: b,
-                learned_norm,
                 fused: true,
                 nis_per_dof: T::lit(nis),
                 dt_s: T::lit(0.01),
             };
             beyond += u32::from(m.update(&reading, T::lit(1e-3), T::lit(NOISE), T::lit(3.29)));
-            learned_norm += (norm - learned_norm) * T::lit(1e-3);
         }
         (m, beyond)
     }
@@ -315,11 +320,10 @@ mod tests {
 
     fn a_seen_offset_is_forgotten_over_its_memory<T: Scalar>() {
         let mut m =
-            MagMonitor::<T>::started_at(&Vector3::new(T::one(), T::zero(), T::one()), T::zero());
+            MagMonitor::<T>::started_at(&Vector3::new(T::one(), T::zero(), T::one()), T::one(), 1);
         m.offset = T::lit(0.2);
         let reading = MagReading {
             field_body: Vector3::new(T::lit(0.7), T::zero(), T::lit(0.7)),
-            learned_norm: T::lit(0.99),
             fused: true,
             nis_per_dof: T::one(),
             dt_s: T::lit(MAG_OFFSET_MEMORY_S / 2.0),
