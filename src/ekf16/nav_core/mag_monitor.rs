@@ -87,8 +87,9 @@ pub(crate) struct MagMonitor<T: Scalar> {
     residual: T,
     /// Held relative offset `beta`, in `[0, 1]`.
     offset: T,
-    /// Mean NIS per degree of freedom `nu`.
-    nis_mean: T,
+    /// Mean NIS per degree of freedom less its expectation, `nu - 1` (zero bytes in a blank
+    /// monitor).
+    nis_excess: T,
     /// Samples the learned norm and direction are the mean of (saturating).
     learned_count: u32,
 }
@@ -114,7 +115,7 @@ impl<T: Scalar> MagMonitor<T> {
         learned_norm: T::ZERO,
         residual: T::ZERO,
         offset: T::ZERO,
-        nis_mean: T::ONE,
+        nis_excess: T::ZERO,
         learned_count: 0,
     };
 
@@ -146,7 +147,8 @@ impl<T: Scalar> MagMonitor<T> {
         k1: T,
     ) -> bool {
         if s.nis_per_dof.is_finite() {
-            self.nis_mean += (s.nis_per_dof - self.nis_mean) * T::lit(MAG_NIS_MEAN_WEIGHT);
+            let excess = s.nis_per_dof - T::one() - self.nis_excess;
+            self.nis_excess += excess * T::lit(MAG_NIS_MEAN_WEIGHT);
         }
         let norm = s.field_body.norm();
         if !(norm > T::zero() && norm.is_finite()) {
@@ -155,7 +157,7 @@ impl<T: Scalar> MagMonitor<T> {
         let u = s.field_body / norm;
         if self.learned_count == 0 {
             *self = Self {
-                nis_mean: self.nis_mean,
+                nis_excess: self.nis_excess,
                 offset: self.offset,
                 ..Self::started_at(&u, norm, 1)
             };
@@ -197,7 +199,9 @@ impl<T: Scalar> MagMonitor<T> {
     pub(crate) fn heading_factor(&self, k1: T) -> T {
         let w = T::lit(MAG_NIS_MEAN_WEIGHT);
         let consistent = T::one() + k1 * (T::lit(2.0) * w / (T::lit(2.0) - w)).sqrt();
-        (self.nis_mean / consistent).max(T::one()).sqrt()
+        ((T::one() + self.nis_excess) / consistent)
+            .max(T::one())
+            .sqrt()
     }
 
     /// What the offset adds to the `(heading, tilt)` levels, rad, with the configured
