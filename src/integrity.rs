@@ -356,6 +356,21 @@ impl<T: Scalar> ProtectionLevels<T> {
     }
 }
 
+impl<T: Scalar> ProtectionLevels<T> {
+    /// The levels with the magnetometer monitor's share `(factor, heading_rad, tilt_rad)`: the
+    /// heading level multiplied by `factor` (at least 1, from the magnetometer's innovations),
+    /// then `heading_rad` and `tilt_rad` (a field offset's turn of the heading and of the
+    /// tilt) added to the heading and tilt levels (degrees).
+    pub fn with_magnetometer(self, (factor, heading_rad, tilt_rad): (T, T, T)) -> Self {
+        let deg = T::lit(180.0 / core::f64::consts::PI);
+        Self {
+            heading_deg: self.heading_deg * factor.max(T::one()) + heading_rad * deg,
+            tilt_deg: self.tilt_deg + tilt_rad * deg,
+            ..self
+        }
+    }
+}
+
 /// What an estimator vouches for, through the [`Navigator`](crate::Navigator) trait: its
 /// protection levels and, per quantity, whether it is valid (`PL <= alert limit` and the
 /// estimator's own preconditions), and the resets it made or divergences it reported.

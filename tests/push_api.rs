@@ -376,6 +376,7 @@ fn ekf_sum(c: &FilterRefusals) -> u64 {
             gps_divergence_resets,
             gps_position_inconsistent,
             covariance_repairs,
+            mag_field_offset,
         }
     )
 }

@@ -221,6 +221,10 @@ pub struct FilterRefusals {
     /// zero in exact arithmetic, or an `f32` covariance spanning too many orders of magnitude),
     /// set to zero with their row and column (the state kept).
     pub covariance_repairs: u32,
+    /// Magnetometer samples whose field norm varied with the attitude beyond the noise (the
+    /// field-offset monitor: a hard-iron offset or a disturbance seen; the heading and tilt
+    /// levels raised by it, no 3-axis update while it lasts).
+    pub mag_field_offset: u32,
 }
 
 impl FilterRefusals {
@@ -246,6 +250,7 @@ impl FilterRefusals {
         gps_divergence_resets: 0,
         gps_position_inconsistent: 0,
         covariance_repairs: 0,
+        mag_field_offset: 0,
     };
 
     /// Field-wise sum (saturating): the counters of a filter that replaced
@@ -290,6 +295,7 @@ impl FilterRefusals {
             covariance_repairs: self
                 .covariance_repairs
                 .saturating_add(other.covariance_repairs),
+            mag_field_offset: self.mag_field_offset.saturating_add(other.mag_field_offset),
         }
     }
 }
@@ -578,6 +584,12 @@ impl<T: Scalar> Ekf16<T> {
     /// (`ProtectionLevels::with_heading_tilt_coupling`).
     pub(crate) fn heading_tilt_coupling(&self) -> T {
         self.core.heading_tilt_coupling()
+    }
+
+    /// The magnetometer monitor's share of the levels: the heading factor and the field
+    /// offset's heading and tilt shares, rad (`src/ekf16/nav_core/mag_monitor.rs`).
+    pub(crate) fn mag_integrity(&self) -> (T, T, T) {
+        self.core.mag_integrity()
     }
 }
 

@@ -223,9 +223,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// gap, the horizon not yet), the growth that crossing the gap will give the horizon's
     /// covariance (the carry, the unknown acceleration and rotation over `t_gap_end - t_h`) is
     /// added. Then the position-against-velocity check's offset added to the position levels,
-    /// the tilt's share of the magnetometer's heading, and the horizon's attitude error, at its
-    /// levels, carried over the span `D` to the present through the present's specific force
-    /// (`ProtectionLevels::carried`; docs/integrity.md).
+    /// the tilt's share of the magnetometer's heading, the magnetometer monitor's (its heading
+    /// factor, a field offset's turn of the heading and the tilt), and the horizon's attitude
+    /// error, at these levels, carried over the span `D` to the present through the present's
+    /// specific force (`ProtectionLevels::carried`; docs/integrity.md).
     pub fn protection_levels(&self) -> ProtectionLevels<T> {
         let s = self.delay_std_s();
         let Some(horizon) = self.ekf.estimate() else {
@@ -268,6 +269,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.ekf.heading_tilt_coupling(),
             self.config.ekf.integrity.risk,
         )
+        .with_magnetometer(self.ekf.mag_integrity())
         .carried(f.norm(), f.x.hypot(f.y), span)
     }
 

@@ -24,6 +24,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             let norm = self.mag_norm_mean.mean[0];
             let inclination = field_inclination(&rot, &self.mag_mean.mean);
             self.mag_field = Some((norm, inclination));
+            self.mag_monitor = mag_monitor::MagMonitor::started_at(
+                &self.mag_mean.mean,
+                norm,
+                self.mag_norm_mean.count,
+            );
         }
         let gyro =
             self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s) - c.initial_gyro_bias_rad_s;

@@ -279,6 +279,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
     }
 
+    /// The magnetometer monitor's share of the levels (`mag_monitor.rs`): the heading level's
+    /// factor (at least 1) and what the field offset adds to the heading and tilt levels, rad.
+    pub(crate) fn mag_integrity(&self) -> (T, T, T) {
+        let (heading, tilt) = self
+            .mag_monitor
+            .offset_shares(self.config.mag_inclination_rad);
+        let (k1, _, _) = crate::integrity::protection_factors(self.config.integrity.risk);
+        (self.mag_monitor.heading_factor(k1), heading, tilt)
+    }
+
     /// The position-against-velocity check's offset: its horizontal norm and its down
     /// component's magnitude, m (module docs), what the position levels are raised by.
     pub(crate) fn position_velocity_bias(&self) -> (T, T) {
@@ -321,7 +331,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             ProtectionLevels::from_covariance(&q, &self.p, config.risk, &zero, &zero, delay_std_s)
                 .inflated(position, velocity)
                 .with_position_bias(self.pv.bias())
-                .with_heading_tilt_coupling(self.heading_tilt_coupling(), config.risk);
+                .with_heading_tilt_coupling(self.heading_tilt_coupling(), config.risk)
+                .with_magnetometer(self.mag_integrity());
         let r = self.refusals;
         Integrity {
             resets: r.gps_position_resets.saturating_add(r.gps_velocity_resets),

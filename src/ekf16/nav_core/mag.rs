@@ -68,8 +68,36 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         } else {
             self.fuse_mag_heading(m.t_us, &m.field_body, field.is_some())?
         };
+        let dt_us = self.mag_clock_us.map_or(0, |t| m.t_us.saturating_sub(t));
         self.finish_mag(m.t_us, mode, field, record);
+        self.monitor_mag(&m.field_body, mode, dt_us);
         Ok(MagOutcome::Fused(self.last_mag))
+    }
+
+    /// The magnetometer's integrity monitor with the sample just fused (or not) in `mode`,
+    /// `dt_us` after the previous one (`mag_monitor.rs`): a norm beyond its tolerance is
+    /// counted in `FilterRefusals::mag_field_offset`.
+    fn monitor_mag(&mut self, field_body: &Vector3<T>, mode: MagMode, dt_us: u64) {
+        let c = &self.config;
+        let (gate, dof) = if mode == MagMode::ThreeAxis {
+            (c.mag_three_axis_gate, T::lit(2.0))
+        } else {
+            (c.mag_gate, T::one())
+        };
+        let record = &self.last_mag;
+        // test_ratio = NIS / gate (infinite for a disturbed sample): capped at the gate.
+        let nis_per_dof = record.test_ratio.min(T::one()) * gate / dof;
+        let reading = mag_monitor::MagReading {
+            field_body: *field_body,
+            fused: record.fused,
+            nis_per_dof,
+            dt_s: us_to_s(dt_us),
+        };
+        let (k1, _, _) = crate::integrity::protection_factors(c.integrity.risk);
+        let (w, r) = (c.mag_field_learning_rate, c.mag_noise_variance);
+        if self.mag_monitor.update(&reading, w, r, k1) {
+            bump(&mut self.refusals.mag_field_offset);
+        }
     }
 
     /// The mode of a sample whose field is `consistent` (or not).
@@ -81,6 +109,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !consistent {
             MagMode::NoFusion
         } else if c.mag_three_axis
+            && self.mag_monitor.offset() <= T::zero()
             && ((inclination_agrees && self.mag_clean_us >= MAG_THREE_AXIS_HOLD_US)
                 || self.aligning_in_motion())
         {

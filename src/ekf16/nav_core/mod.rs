@@ -63,6 +63,7 @@ mod gps;
 mod integrity;
 pub(crate) use integrity::{GAP_MOTION_MAX_S, gap_growth};
 mod mag;
+mod mag_monitor;
 mod predict;
 
 use super::config::Ekf16Config;
@@ -491,6 +492,8 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     gps_nis_mean: [T; 2],
     /// The GPS position-against-velocity consistency check (`integrity.rs`).
     pv: integrity::PvMonitor<T>,
+    /// The magnetometer's innovation and field-offset monitor (`mag_monitor.rs`).
+    mag_monitor: mag_monitor::MagMonitor<T>,
     last_gps_reset: ZeroOption<GpsReset>,
     /// Whether the fixes are geodetic (`Some(true)`) or NED, from the first.
     geodetic_fixes: ZeroOption<bool>,
@@ -558,6 +561,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gps_nis: [(T::ZERO, 0); 2],
             gps_nis_mean: [T::ZERO; 2],
             pv: integrity::PvMonitor::EMPTY,
+            mag_monitor: mag_monitor::MagMonitor::EMPTY,
             last_gps_reset: ZeroOption::None,
             geodetic_fixes: ZeroOption::None,
             mag_norm_mean: BoundedMean::EMPTY,
@@ -644,6 +648,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
         self.pv = integrity::PvMonitor::EMPTY;
+        self.mag_monitor = mag_monitor::MagMonitor::EMPTY;
         self.last_gps_reset = ZeroOption::None;
         self.geodetic_fixes = ZeroOption::None;
         self.mag_norm_mean = BoundedMean::EMPTY;

@@ -51,7 +51,7 @@ impl HealthSummary {
                 imu_step_too_long, imu_ahead, gps_invalid, gps_time, gps_mixed_frames, mag_invalid,
                 mag_time, not_positive_definite, covariance_repairs)),
             gated: non_zero(fields!(c; gps_position_rejected, gps_velocity_rejected,
-                mag_rejected, mag_disturbed, gps_position_inconsistent)),
+                mag_rejected, mag_disturbed, gps_position_inconsistent, mag_field_offset)),
             resets: non_zero(fields!(c; gps_position_resets, gps_velocity_resets,
                 gps_divergence_resets)),
             last_reset: last.map(|r| {
