@@ -1451,6 +1451,25 @@ fn fuzz_calm_flights_within_the_budget() {
     }
 }
 
+/// The fuzz inputs reach the navigator's delay loop at work: its first valid
+/// update comes after more calm flight than the next longest saved start
+/// and the calm flights' budget give an input, and the last saved start has
+/// it (in estimated mode, both precisions).
+#[test]
+fn fuzz_starts_reach_the_delay_loop() {
+    fn updates<T: Scalar>(nav: DelayCompensatedNav<T>, ms: u32) -> u32 {
+        let d = replay(nav, Some(ms), &[]).expect("a calm start passes the checks");
+        d.into_parts().0.health().delay.valid_updates
+    }
+    let [.., Some(before), Some(last)] = fuzz_input::STARTS_MS else {
+        unreachable!("the last two saved starts are calm flights");
+    };
+    let most_without = before + fuzz_input::CALM_BUDGET_MS;
+    assert_eq!(updates(f64_::nav_estimated(), most_without), 0);
+    assert!(updates(f32_::nav_estimated(), last) > 0);
+    assert!(updates(f64_::nav_estimated(), last) > 0);
+}
+
 /// The fuzz targets start from saved states: a case from a saved calm start
 /// ends where the same case from scratch does.
 #[test]

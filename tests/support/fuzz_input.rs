@@ -9,9 +9,12 @@
 //!
 //! Layout of an input:
 //! - byte 0, the start: bit 0 the precision (0 `f32`, 1 `f64`); below
-//!   `0xfe`, bits 1-2 pick a saved state to start from (fresh, or after 0.3,
-//!   1 or 2.5 s of the machine's calm flight, [`STARTS_MS`], computed once
-//!   per process and cloned); `0xfe` and `0xff` are followed by a `u16`
+//!   `0xfe`, the other bits (`byte >> 1`, modulo 5) pick a saved state to
+//!   start from (fresh, or after 0.3, 1, 2.5 or 8 s of the machine's calm
+//!   flight, [`STARTS_MS`], computed once per process and cloned; after 8 s
+//!   the navigator's delay loop is locked, its first valid update coming
+//!   after 6 s, beyond what the calm flights' budget can add to a shorter
+//!   start); `0xfe` and `0xff` are followed by a `u16`
 //!   (little-endian): a calm start of that many ms, flown in every
 //!   execution (the regression cases' other starts);
 //! - then operations, one tag byte each (its low four bits) and the bytes
@@ -48,9 +51,10 @@ use super::{Op, Position, Setting, Time};
 /// The most operations decoded from one input.
 pub(crate) const MAX_OPS: usize = 256;
 /// The saved starts a case may begin from, ms of calm flight (`None`: fresh).
-pub(crate) const STARTS_MS: [Option<u32>; 4] = [None, Some(300), Some(1_000), Some(2_500)];
-/// The most ms of calm flight with a `u16` duration in one input (module
-/// docs).
+pub(crate) const STARTS_MS: [Option<u32>; 5] =
+    [None, Some(300), Some(1_000), Some(2_500), Some(8_000)];
+/// The most ms of calm flight in one input, the start's, the short and the
+/// long flights together (module docs).
 pub(crate) const CALM_BUDGET_MS: u32 = 2_000;
 /// The start bytes (`f32`, `f64`) followed by their calm start's duration.
 const CALM_START: u8 = 0xfe;
