@@ -50,7 +50,7 @@ use delaynav::{
     AugmentedEkf17, AugmentedEkf17Config, Ekf16, Ekf16Config, Error, Estimate, FilterRefusals,
     Geodetic, Gps, GpsOutcome, GpsPosition, Imu, Mag, MagOutcome, Navigator, Scalar,
 };
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::Vector3;
 use proptest::prelude::*;
 
 #[path = "support/fuzz_input.rs"]
@@ -296,8 +296,9 @@ pub(crate) trait Subject<T: Scalar>: Navigator<T> {
     /// Sums of the refusal counters: the estimator's own and its (horizon)
     /// EKF's; for the EKFs the first is 0.
     fn refusal_sums(&self) -> (u64, u64);
-    /// The filter's raw state (16 navigation states) and full covariance.
-    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>);
+    /// The filter's raw state (16 navigation states) and full covariance
+    /// (its elements in column order).
+    fn filter_state(&self) -> (StateVector<T>, &[T]);
     /// Sum of the counters of refused GPS fixes (its own and its EKF's).
     fn gps_refusals(&self) -> u64;
     /// `reset()` where the estimator has one (a no-op otherwise).
@@ -435,10 +436,6 @@ fn nav_gps(c: &NavRefusals) -> u64 {
     .sum()
 }
 
-fn dynamic<T: Scalar, const N: usize>(p: &nalgebra::SMatrix<T, N, N>) -> DMatrix<T> {
-    DMatrix::from_iterator(N, N, p.iter().copied())
-}
-
 impl<T: Scalar> Subject<T> for Ekf16<T> {
     fn refusal_sums(&self) -> (u64, u64) {
         (0, ekf_sum(&self.refusals()))
@@ -446,8 +443,8 @@ impl<T: Scalar> Subject<T> for Ekf16<T> {
     fn gps_refusals(&self) -> u64 {
         ekf_gps(&self.refusals())
     }
-    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
-        (*self.state_vector(), dynamic(self.covariance()))
+    fn filter_state(&self) -> (StateVector<T>, &[T]) {
+        (*self.state_vector(), self.covariance().as_slice())
     }
     fn configure_field(&mut self, field: u8, value: Setting) -> bool {
         let mut c = *self.config();
@@ -463,9 +460,9 @@ impl<T: Scalar> Subject<T> for AugmentedEkf17<T> {
     fn gps_refusals(&self) -> u64 {
         ekf_gps(&self.refusals())
     }
-    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
+    fn filter_state(&self) -> (StateVector<T>, &[T]) {
         let x = self.state_vector().fixed_rows::<16>(0).into_owned();
-        (x, dynamic(self.covariance()))
+        (x, self.covariance().as_slice())
     }
     fn configure_field(&mut self, field: u8, value: Setting) -> bool {
         let mut c = *self.config();
@@ -486,9 +483,9 @@ impl<T: Scalar> Subject<T> for DelayCompensatedNav<T> {
     fn gps_refusals(&self) -> u64 {
         nav_gps(&self.refusals()) + ekf_gps(&self.refusals().horizon)
     }
-    fn filter_state(&self) -> (StateVector<T>, DMatrix<T>) {
+    fn filter_state(&self) -> (StateVector<T>, &[T]) {
         let ekf = self.horizon_filter();
-        (*ekf.state_vector(), dynamic(ekf.covariance()))
+        (*ekf.state_vector(), ekf.covariance().as_slice())
     }
     fn reset(&mut self) {
         DelayCompensatedNav::reset(self);
@@ -553,14 +550,28 @@ fn mag_gated<T: Scalar>(o: &MagOutcome<T>) -> u64 {
     }
 }
 
+/// Every element finite. Branch-free (`0 x` is 0 for a finite `x`, NaN
+/// otherwise, and a NaN makes a sum NaN) in eight independent lanes: the
+/// fuzz targets run it on the covariance after every call, and a comparison
+/// per element (libFuzzer traces each) and one long chain of additions were
+/// most of an execution's time.
 fn finite<T: Scalar>(v: &[T]) -> bool {
-    v.iter().all(|x| x.is_finite())
+    let mut lanes = [T::zero(); 8];
+    let chunks = v.chunks_exact(8);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &x) in lanes.iter_mut().zip(chunk) {
+            *lane += T::zero() * x;
+        }
+    }
+    let rest = rest.iter().fold(T::zero(), |sum, &x| sum + T::zero() * x);
+    lanes.iter().fold(rest, |sum, &lane| sum + lane) == T::zero()
 }
 
-/// The state properties (module docs).
-fn check_state<T: Scalar, S: Subject<T>>(s: &S, what: &str) -> Result<(), TestCaseError> {
+/// The state properties (module docs); true when there is an estimate.
+fn check_state<T: Scalar, S: Subject<T>>(s: &S, what: &str) -> Result<bool, TestCaseError> {
     let Some(e): Option<Estimate<T>> = s.estimate() else {
-        return Ok(());
+        return Ok(false);
     };
     let q = e.attitude.quaternion().coords;
     prop_assert!(finite(q.as_slice()), "{what}: quaternion {q:?}");
@@ -594,8 +605,8 @@ fn check_state<T: Scalar, S: Subject<T>>(s: &S, what: &str) -> Result<(), TestCa
         (raw - 1.0).abs() <= UNIT_TOLERANCE,
         "{what}: filter quaternion norm {raw}"
     );
-    prop_assert!(finite(p.as_slice()), "{what}: filter covariance not finite");
-    Ok(())
+    prop_assert!(finite(p), "{what}: filter covariance not finite");
+    Ok(true)
 }
 
 /// Drives one estimator through one case.
@@ -649,8 +660,9 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
             "call {} ({what}): {refused} refusal(s) but the counters went {before} -> {after}",
             self.calls
         );
-        self.estimated_calls += u64::from(self.s.estimate().is_some());
-        check_state(&self.s, what)
+        let estimated = check_state(&self.s, what)?;
+        self.estimated_calls += u64::from(estimated);
+        Ok(())
     }
 
     fn imu(&mut self, t_us: u64, gyro: [f64; 3], accel: [f64; 3]) -> Result<(), TestCaseError> {
@@ -757,7 +769,7 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
                 let t_us = self.time(t);
                 self.mag(t_us, field)
             }
-            Op::Estimate => check_state(&self.s, "estimate"),
+            Op::Estimate => check_state(&self.s, "estimate").map(drop),
             Op::Reset => self.call("reset", |s| {
                 s.reset();
                 0
@@ -772,7 +784,7 @@ impl<T: Scalar, S: Subject<T>> Driver<T, S> {
             Op::Configure { field, value } => {
                 self.calls += 1;
                 self.s.configure_field(field, value);
-                check_state(&self.s, "configure")
+                check_state(&self.s, "configure").map(drop)
             }
         }
     }
@@ -1354,6 +1366,110 @@ fn huge_ned_fix_ops() -> [Vec<Op>; 2] {
         Op::Calm(89),
     ];
     [f32_ops, f64_ops]
+}
+
+/// [`finite`] (branch-free, in lanes) finds a non-finite element wherever it
+/// is, in slices of every length around its lanes' and a covariance's, and
+/// passes the largest, smallest and subnormal floats.
+#[test]
+fn finite_finds_every_non_finite() {
+    fn check<T: Scalar>(values: &[T], bad: &[T]) {
+        for n in (0..=20).chain([256, 289]) {
+            let clean: Vec<T> = (0..n).map(|i| values[i % values.len()]).collect();
+            assert!(finite(&clean), "{n} finite values");
+            for (i, &b) in (0..n).flat_map(|i| bad.iter().map(move |b| (i, b))) {
+                let mut v = clean.clone();
+                v[i] = b;
+                assert!(!finite(&v), "{b:?} at {i} of {n}");
+            }
+        }
+    }
+    let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+    check(
+        &[
+            0.0,
+            -0.0,
+            f32::MAX,
+            f32::MIN,
+            1e-45,
+            f32::MIN_POSITIVE,
+            -3.5,
+        ],
+        &bad,
+    );
+    let bad = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+    check(
+        &[
+            0.0,
+            -0.0,
+            f64::MAX,
+            f64::MIN,
+            5e-324,
+            f64::MIN_POSITIVE,
+            -3.5,
+        ],
+        &bad,
+    );
+}
+
+/// The fuzz inputs' calm flights, short and long, the start's included, fly
+/// at most `CALM_BUDGET_MS` in all (runs of short flights were most of the
+/// long fuzz runs' time), and the first ones within it whole.
+#[test]
+fn fuzz_calm_flights_within_the_budget() {
+    let short_runs = |start: u8, b: u8| {
+        let mut bytes = vec![start];
+        bytes.extend([0x0f, b].repeat(511));
+        bytes
+    };
+    let mut long_runs = vec![0x00];
+    for _ in 0..100 {
+        long_runs.extend([0x0f, fuzz_input::CALM_LONG, 0xff, 0xff]);
+    }
+    let mut calm_start = vec![0xfe, 0xd0, 0x07];
+    calm_start.extend([0x0f, 0x3f].repeat(10));
+    for (bytes, first) in [
+        (short_runs(0x00, 0xff), 64),
+        (short_runs(0x01, 0x0f), 16),
+        (long_runs, fuzz_input::CALM_BUDGET_MS),
+        (calm_start, 0),
+    ] {
+        let input = fuzz_input::decode(&bytes).expect("decodes");
+        let flights: Vec<u32> = input
+            .ops
+            .iter()
+            .filter_map(|op| match op {
+                Op::Calm(ms) => Some(*ms),
+                _ => None,
+            })
+            .collect();
+        let start = match input.start {
+            fuzz_input::Start::Calm(ms) => ms,
+            fuzz_input::Start::Saved(_) => 0,
+        };
+        let total = start + flights.iter().sum::<u32>();
+        assert_eq!(total, fuzz_input::CALM_BUDGET_MS, "{flights:?}");
+        assert_eq!(flights[0], first, "{flights:?}");
+    }
+}
+
+/// The fuzz inputs reach the navigator's delay loop at work: its first valid
+/// update comes after more calm flight than the next longest saved start
+/// and the calm flights' budget give an input, and the last saved start has
+/// it (in estimated mode, both precisions).
+#[test]
+fn fuzz_starts_reach_the_delay_loop() {
+    fn updates<T: Scalar>(nav: DelayCompensatedNav<T>, ms: u32) -> u32 {
+        let d = replay(nav, Some(ms), &[]).expect("a calm start passes the checks");
+        d.into_parts().0.health().delay.valid_updates
+    }
+    let [.., Some(before), Some(last)] = fuzz_input::STARTS_MS else {
+        unreachable!("the last two saved starts are calm flights");
+    };
+    let most_without = before + fuzz_input::CALM_BUDGET_MS;
+    assert_eq!(updates(f64_::nav_estimated(), most_without), 0);
+    assert!(updates(f32_::nav_estimated(), last) > 0);
+    assert!(updates(f64_::nav_estimated(), last) > 0);
 }
 
 /// The fuzz targets start from saved states: a case from a saved calm start
