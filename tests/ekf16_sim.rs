@@ -585,5 +585,64 @@ fn a_hard_iron_offset_raises_the_heading_level() {
         valid && level < 5.0 && !misleading,
         "clean: {level} deg, valid {valid}"
     );
-    assert!(counted < 10, "clean: {counted} samples counted");
+    assert_eq!(counted, 0, "clean: {counted} samples counted");
+}
+
+/// An alignment on one magnetometer sample 30 % below the field's norm (a start can have one
+/// sample when the first fix follows the first sample; the Table 3 magnetometer's noise is
+/// 0.14 of the field per axis): the filter's reference norm and the monitor's learned one are
+/// running means from it, so the samples above it are fused within a few samples and no
+/// offset is seen on a clean field. A reference kept at the one sample refused the samples
+/// above its norm gate and biased the monitor's norm low: here 16 samples counted as an
+/// offset; in the navigator's `high` scenario, seed 4 (one sample 15 % low), every sample for
+/// 24 s, the 3-axis update stopped all along.
+fn one_low_sample_alignment<T: Scalar>() {
+    let sim = no_delay(Scenario::High, 4, 40.0);
+    let events: Vec<SimEvent> = Simulation::new(sim.clone()).unwrap().collect();
+    let first_fix = events
+        .iter()
+        .find_map(|e| match e {
+            SimEvent::Gps { fix, .. } => Some(fix.t_us),
+            _ => None,
+        })
+        .unwrap();
+    let mut ekf = Ekf16::new(table3_filter::<T>(&sim)).unwrap();
+    let last_before = events
+        .iter()
+        .rposition(|e| matches!(e, SimEvent::Mag(m) if m.t_us < first_fix))
+        .unwrap();
+    for (i, event) in events.into_iter().enumerate() {
+        match event {
+            SimEvent::Imu { sample, .. } => {
+                let _ = ekf.push_imu(&imu_sample::<T>(&sample));
+            }
+            SimEvent::Mag(mut m) => {
+                if m.t_us < first_fix && i != last_before {
+                    continue;
+                }
+                if i == last_before {
+                    m.field_body *= 0.7;
+                }
+                let _ = ekf.push_mag(&mag_sample::<T>(&m));
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = ekf.push_gps(&gps_fix::<T>(&fix));
+            }
+        }
+    }
+    let r = ekf.refusals();
+    assert_eq!(r.mag_field_offset, 0, "{r:?}");
+    eprintln!("{r:?}");
+    eprintln!("{r:?}");
+    assert_eq!(ekf.mag_modes().mode, MagMode::ThreeAxis);
+}
+
+#[test]
+fn one_low_sample_alignment_f32() {
+    one_low_sample_alignment::<f32>();
+}
+
+#[test]
+fn one_low_sample_alignment_f64() {
+    one_low_sample_alignment::<f64>();
 }

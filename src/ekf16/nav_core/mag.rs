@@ -270,15 +270,28 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         cov[(0, 0)].max(cov[(1, 1)]).max(T::zero()).sqrt()
     }
 
-    /// Moves the learned field toward an accepted sample's norm and
-    /// inclination by `mag_field_learning_rate` (an exponential mean).
+    /// Moves the learned field toward a fused sample's norm and inclination.
+    /// The norm: a running mean from the alignment's samples on, until it is
+    /// the mean of `1 / mag_field_learning_rate` samples, then an exponential
+    /// mean of that weight (the magnetometer monitor's weights,
+    /// `mag_monitor.rs`). The alignment may have seen a single sample: a norm
+    /// that stayed at it (the `high` scenario, seed 4: 15 % low) refused the
+    /// samples on one side of it for tens of seconds and biased the monitor.
+    /// The inclination: an exponential mean of weight
+    /// `mag_field_learning_rate` (each sample is seen through the attitude,
+    /// and a running mean would weigh those of an alignment most).
     /// While the tilt standard deviation is above [`MAG_INFLIGHT_TILT_STD_RAD`]
     /// (an alignment in motion), the inclination follows the samples with
     /// the weight [`MAG_ALIGNING_INCLINATION_RATE`] at least: each is seen
     /// through an attitude being levelled, and the one learned at the start
     /// (through the accelerometer's tilt) says nothing.
     pub(super) fn learn_mag_field(&mut self, sample: (T, T)) {
+        // A running mean over the alignment's samples and the fused ones until it is the
+        // mean of `1 / w` samples (the monitor counts them, `mag_monitor.rs`), then the
+        // exponential mean: an alignment may have seen one sample.
         let w = self.config.mag_field_learning_rate;
+        let fused = self.mag_monitor.learned_count().saturating_add(1);
+        let wn = w.max(T::one() / T::lit(f64::from(fused)));
         let wi = if self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD) {
             w.max(T::lit(MAG_ALIGNING_INCLINATION_RATE))
         } else {
@@ -286,7 +299,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         self.mag_field = Some(match self.mag_field {
             None => sample,
-            Some((n, i)) => (n + (sample.0 - n) * w, i + (sample.1 - i) * wi),
+            Some((n, i)) => (n + (sample.0 - n) * wn, i + (sample.1 - i) * wi),
         });
     }
 }

@@ -189,6 +189,12 @@ impl<T: Scalar> MagMonitor<T> {
         beyond
     }
 
+    /// Samples the learned norm and direction are the mean of (the alignment's and the fused
+    /// ones; 0 before the start).
+    pub(crate) fn learned_count(&self) -> u32 {
+        self.learned_count
+    }
+
     /// The held relative offset `beta` (module docs); 0 when none was seen.
     pub(crate) fn offset(&self) -> T {
         self.offset
