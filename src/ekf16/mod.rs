@@ -507,13 +507,14 @@ impl<T: Scalar> Ekf16<T> {
         }
         let state = NavState::from_vector(self.core.state());
         let dt = us_to_s::<T>(now - before);
-        let gravity = self.core.config().gravity_m_s2;
+        let config = self.core.config();
         self.latency.update(
             &state.attitude,
             &imu.accel_m_s2,
             &state.accel_bias_m_s2,
-            gravity,
+            config.gravity_m_s2,
             dt,
+            config.integrity.gps_latency_allowance_s,
         );
     }
 
@@ -625,9 +626,12 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
         }
         let config = &self.core.config().integrity;
         let velocity = NavState::from_vector(self.core.state()).velocity_ned_m_s;
-        let levels = self
-            .latency
-            .raise(base.levels, &velocity, config.gps_latency_allowance_s);
+        let levels = self.latency.raise(
+            base.levels,
+            &velocity,
+            config.gps_latency_allowance_s,
+            self.core.config().gravity_m_s2,
+        );
         crate::integrity::Integrity {
             resets: base.resets,
             ..crate::integrity::Integrity::judged(levels, config, true)
@@ -706,7 +710,8 @@ mod tests {
     /// latency allowance: moving at 5 m/s horizontally and 1 m/s down while accelerating
     /// 2 m/s² north, the default 0.4 s raises them against an allowance of 0 by
     /// `0.4 * 5 + 0.08 * 2` (horizontal), `0.4 * 1 + 0.08 * 2` (vertical) and `0.4 * 2`
-    /// (velocity), within the velocity's change over the second flown.
+    /// (velocity), within the velocity's change over the second flown; the tilt by the
+    /// acceleration's change at the start, decayed.
     fn the_levels_carry_the_latency_allowance<T: Scalar>() {
         let lit = T::lit;
         let start = NavState {
@@ -742,7 +747,13 @@ mod tests {
         ));
         assert!(near(with.vertical_m - without.vertical_m, 0.4 + 0.16));
         assert!(near(with.velocity_m_s - without.velocity_m_s, 0.8));
-        assert_eq!(with.tilt_deg, without.tilt_deg);
+        // The acceleration began at the start: its change over the allowance, 2 m/s² at
+        // most, held in a peak that decays over 1 s.
+        let tilt = (with.tilt_deg - without.tilt_deg).as_f64();
+        assert!(
+            tilt > 0.5 && tilt < (2.0f64 / 9.80665).atan().to_degrees(),
+            "{tilt}"
+        );
     }
 
     tests_in_both_precisions!(
