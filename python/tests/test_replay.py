@@ -90,8 +90,15 @@ def test_replay_protection_levels_follow_the_alert_limits():
                                  "horizontal_alert_limit_m", "vertical_alert_limit_m",
                                  "velocity_alert_limit_m_s"]):
             assert np.all(levels[valid[:, i], i] <= limits[key] + 1e-9), (name, key)
-        # Aligned most of the flight: the tilt is valid at most estimates, with a finite level.
-        assert valid[:, 0].mean() > 0.5, name
+    # The navigator: aligned most of the flight, its tilt valid at most estimates. Ekf16's tilt
+    # level also carries what its unmodelled GPS latency turns the attitude by (the change of the
+    # acceleration over the 0.4 s allowance): on this vibrating 50 Hz log it is the higher level
+    # and the less often valid one.
+    tilt = {name: r.trace(name)["protection_levels"][:, 0] for name in r.estimators}
+    tilt_valid = {name: r.trace(name)["valid"][:, 0].mean() for name in r.estimators}
+    assert tilt_valid["proposed"] > 0.5, tilt_valid
+    assert tilt_valid["ekf16"] < tilt_valid["proposed"], tilt_valid
+    assert np.median(tilt["ekf16"]) > np.median(tilt["proposed"])
     # The summary's levels at the scored samples.
     i = r.estimator("proposed")["integrity"]
     assert i["epochs"] > 1000 and 0.0 < i["availability"] <= 1.0
