@@ -286,12 +286,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     /// through an attitude being levelled, and the one learned at the start
     /// (through the accelerometer's tilt) says nothing.
     pub(super) fn learn_mag_field(&mut self, sample: (T, T)) {
-        // A running mean over the alignment's samples and the fused ones until it is the
-        // mean of `1 / w` samples (the monitor counts them, `mag_monitor.rs`), then the
-        // exponential mean: an alignment may have seen one sample.
         let w = self.config.mag_field_learning_rate;
-        let fused = self.mag_monitor.learned_count().saturating_add(1);
-        let wn = w.max(T::one() / T::lit(f64::from(fused)));
+        let wn = self.mag_monitor.next_weight(w);
         let wi = if self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD) {
             w.max(T::lit(MAG_ALIGNING_INCLINATION_RATE))
         } else {

@@ -166,8 +166,8 @@ impl<T: Scalar> MagMonitor<T> {
         self.residual += (norm / self.learned_norm - T::one() - self.residual) * a;
         self.direction += (u - self.direction) * a;
         if s.fused {
+            let b = self.next_weight(learning_rate);
             self.learned_count = self.learned_count.saturating_add(1);
-            let b = learning_rate.max(T::one() / T::lit(f64::from(self.learned_count)));
             self.learned_norm += (norm - self.learned_norm) * b;
             self.learned_direction += (u - self.learned_direction) * b;
         }
@@ -189,10 +189,11 @@ impl<T: Scalar> MagMonitor<T> {
         beyond
     }
 
-    /// Samples the learned norm and direction are the mean of (the alignment's and the fused
-    /// ones; 0 before the start).
-    pub(crate) fn learned_count(&self) -> u32 {
-        self.learned_count
+    /// The weight of the next fused sample in the learned norm and direction,
+    /// `b_k = max(1 / k, w)` (`w` = `learning_rate`; module docs).
+    pub(crate) fn next_weight(&self, learning_rate: T) -> T {
+        let k = self.learned_count.saturating_add(1);
+        learning_rate.max(T::one() / T::lit(f64::from(k)))
     }
 
     /// The held relative offset `beta` (module docs); 0 when none was seen.
