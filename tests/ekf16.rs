@@ -747,6 +747,41 @@ macro_rules! ekf16_tests {
                 assert_eq!(ekf.time_us(), Some(t + 10_000));
             }
 
+            /// A sample an hour ahead waits for the next to confirm the jump; meanwhile the
+            /// present may be an hour away, and nothing is valid. The next sample on the old
+            /// clock decides it, and the flags are what they were.
+            #[test]
+            fn nothing_is_valid_while_a_jump_waits_for_confirmation() {
+                let mut ekf = running_filter();
+                let t = ekf.time_us().unwrap();
+                let flags = |i: delaynav::integrity::Integrity<T>| {
+                    [
+                        i.tilt_valid,
+                        i.heading_valid,
+                        i.horizontal_valid,
+                        i.vertical_valid,
+                        i.velocity_valid,
+                    ]
+                };
+                let before = flags(ekf.integrity());
+                assert!(before.iter().any(|&f| f), "{before:?}");
+                let level = |t_us| Imu {
+                    t_us,
+                    gyro_rad_s: Vector3::zeros(),
+                    accel_m_s2: Vector3::new(lit(0.0), lit(0.0), lit(-9.8)),
+                };
+                assert!(matches!(
+                    ekf.push_imu(&level(t + 3_600_000_000)),
+                    Err(Error::OutOfRange {
+                        field: "imu.time",
+                        ..
+                    })
+                ));
+                assert_eq!(flags(ekf.integrity()), [false; 5]);
+                ekf.push_imu(&level(t + 10_000)).unwrap();
+                assert_eq!(flags(ekf.integrity()), before);
+            }
+
             /// A gap moves the clock, carries the position by the velocity (nothing else of
             /// the state moves) and grows `P`: the process noise and the unknown motion.
             #[test]

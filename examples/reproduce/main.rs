@@ -161,6 +161,18 @@ fn main() -> Result<(), Box<dyn Error>> {
         eprint!("{result}");
         eprintln!("integrity: {:.1} s wall", result.wall_s);
         write_json(&args.json, &result.to_json())?;
+        let dir = args
+            .plots
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("target/integrity"));
+        std::fs::create_dir_all(&dir)?;
+        for (diagram, (quantity, unit)) in
+            result.stanford.iter().zip(integrity::STANFORD_QUANTITIES)
+        {
+            let path = dir.join(format!("stanford-{quantity}.svg"));
+            plots::stanford(&path, quantity, unit, diagram)?;
+            eprintln!("wrote {}", path.display());
+        }
         if args.check {
             enforce(&result.verdicts(), &args.known_failures)?;
         }

@@ -3,6 +3,7 @@
 //! against its parameter ([`sweep`]).
 
 use delaynav::sim::Scenario;
+use delaynav::sim::suite::integrity::{STANFORD_BINS, STANFORD_SPAN_AL, Stanford};
 use delaynav::sim::suite::sweep::{SWEEP_FIGURES, SweepFigure, SweepParameter};
 use delaynav::sim::suite::tables::ScenarioResult;
 use plotters::prelude::*;
@@ -248,6 +249,152 @@ pub fn sweep(
             .border_style(BLACK)
             .position(SeriesLabelPosition::UpperRight)
             .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+/// The colour of a Stanford-diagram bin holding `count` epochs, `max` the fullest bin's, on a
+/// log scale through `stops` (from 1 epoch to `max`).
+fn stanford_color(count: u64, max: u64, stops: &[RGBColor; 3]) -> RGBColor {
+    let f = if max > 1 {
+        (count as f64).ln() / (max as f64).ln()
+    } else {
+        1.0
+    };
+    let (a, b, t) = if f < 0.5 {
+        (stops[0], stops[1], f * 2.0)
+    } else {
+        (stops[1], stops[2], f * 2.0 - 1.0)
+    };
+    let mix = |x: u8, y: u8| (x as f64 + (y as f64 - x as f64) * t).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// Available epochs: yellow, teal, purple (a viridis-like ramp).
+const AVAILABLE_STOPS: [RGBColor; 3] = [
+    RGBColor(0xfd, 0xe7, 0x25),
+    RGBColor(0x21, 0x91, 0x8c),
+    RGBColor(0x44, 0x01, 0x54),
+];
+/// Epochs not available: light to dark grey.
+const UNAVAILABLE_STOPS: [RGBColor; 3] = [
+    RGBColor(0xe4, 0xe4, 0xe4),
+    RGBColor(0xa8, 0xa8, 0xa8),
+    RGBColor(0x50, 0x50, 0x50),
+];
+
+/// A Stanford diagram (error against protection level, epochs per bin on a log colour scale,
+/// the diagonal and the alert limit drawn, the regions' counts in the caption) into `path`.
+pub fn stanford(
+    path: &Path,
+    quantity: &str,
+    unit: &str,
+    diagram: &Stanford,
+) -> Result<(), Box<dyn Error>> {
+    let al = diagram.alert_limit;
+    let span = STANFORD_SPAN_AL * al;
+    let width = span / STANFORD_BINS as f64;
+    let root = SVGBackend::new(path, (760, 820)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let r = diagram.regions;
+    let total = r.nominal + r.misleading + r.hazardous + r.unavailable + r.unavailable_misleading;
+    let (top, bottom) = root.split_vertically(700);
+    let mut chart = ChartBuilder::on(&top)
+        .caption(
+            format!("Stanford diagram: {quantity}, navigator, every integrity run"),
+            ("sans-serif", 18),
+        )
+        .margin(14)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..span, 0.0..span)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(format!(
+            "{quantity} error ({unit}); the last bin holds everything beyond"
+        ))
+        .y_desc(format!("{quantity} protection level ({unit})"))
+        .draw()?;
+    let max = diagram
+        .counts
+        .iter()
+        .chain(&diagram.unavailable_counts)
+        .copied()
+        .max()
+        .unwrap_or(0);
+    // Where a bin holds both, the available epochs are drawn over the others.
+    for (counts, stops) in [
+        (&diagram.unavailable_counts, &UNAVAILABLE_STOPS),
+        (&diagram.counts, &AVAILABLE_STOPS),
+    ] {
+        chart.draw_series(
+            counts
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c > 0)
+                .map(|(i, &c)| {
+                    let (row, col) = (i / STANFORD_BINS, i % STANFORD_BINS);
+                    let (x, y) = (col as f64 * width, row as f64 * width);
+                    Rectangle::new(
+                        [(x, y), (x + width, y + width)],
+                        stanford_color(c, max, stops).filled(),
+                    )
+                }),
+        )?;
+    }
+    chart.draw_series(LineSeries::new(
+        [(0.0, 0.0), (span, span)],
+        BLACK.stroke_width(1),
+    ))?;
+    let limit = RGBColor(0xd6, 0x27, 0x28);
+    chart.draw_series(LineSeries::new(
+        [(al, 0.0), (al, span)],
+        limit.stroke_width(2),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        [(0.0, al), (span, al)],
+        limit.stroke_width(2),
+    ))?;
+    let label = |text: &str, x: f64, y: f64| {
+        Text::new(text.to_string(), (x, y), ("sans-serif", 13).into_font())
+    };
+    chart.draw_series([
+        label("MI", 0.6 * al, 0.15 * al),
+        label("HMI (error > AL)", 1.5 * al, 0.4 * al),
+        label("PL > AL: not available", 1.6 * al, 1.2 * al),
+    ])?;
+    let share = |n: u64| 100.0 * n as f64 / total.max(1) as f64;
+    let lines = [
+        "colour: the flag valid (yellow to purple); grey: not valid (PL > AL, or not usable)"
+            .to_string(),
+        format!(
+            "{total} epochs; alert limit (red) {al} {unit}; diagonal: error = PL; epochs per bin (log, max {max})"
+        ),
+        format!(
+            "available: error within PL {} ({:.2} %), MI {} ({:.4} %), HMI (error > AL) {} ({:.4} %)",
+            r.nominal,
+            share(r.nominal),
+            r.misleading,
+            share(r.misleading),
+            r.hazardous,
+            share(r.hazardous),
+        ),
+        format!(
+            "not available: error within PL {} ({:.2} %), error above PL {} ({:.4} %)",
+            r.unavailable,
+            share(r.unavailable),
+            r.unavailable_misleading,
+            share(r.unavailable_misleading),
+        ),
+    ];
+    for (k, line) in lines.iter().enumerate() {
+        bottom.draw(&Text::new(
+            line.clone(),
+            (20, 8 + 24 * k as i32),
+            ("sans-serif", 14).into_font(),
+        ))?;
     }
     root.present()?;
     Ok(())

@@ -6,6 +6,7 @@ use nalgebra::Vector3;
 use super::config::GridSizes;
 use super::grid::{GpsToGrid, ImuToGrid, admit_sample};
 use super::matched::MatchedCorrelator;
+use super::sigma::BiasWatch;
 use super::tracking::drop_inconsistent_axes;
 use super::{
     ACQUIRE_AGREEMENT_SIGMA, AXES, AxisUpdate, DelayLoop, DelayLoopConfig, DelayStatus,
@@ -52,8 +53,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         shift_min: 0,
         innovation_ratio: T::ZERO,
         innovations_matched: 0,
-        bias_mean: T::ZERO,
-        bias_spread: T::ZERO,
+        bias: BiasWatch::BLANK,
         locked: false,
         following: false,
         stable_since_us: None,
@@ -116,8 +116,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.shift_min = sizes.shift_min;
         self.innovation_ratio = T::one();
         self.innovations_matched = 0;
-        self.bias_mean = T::zero();
-        self.bias_spread = T::zero();
+        self.bias = BiasWatch::BLANK;
         self.locked = config.fusion.initial_std_s <= config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;
@@ -340,8 +339,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return Err(Error::not_configured());
         }
         self.fusion.reset(delay_s, std_s)?;
-        self.bias_mean = T::zero();
-        self.bias_spread = T::zero();
+        self.bias = BiasWatch::BLANK;
         self.locked = std_s <= self.config.lock_std_s;
         self.following = false;
         self.stable_since_us = None;

@@ -227,11 +227,8 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     /// Updates in the innovation match so far, up to 255 (its weights: see
     /// [`SIGMA_MATCH_TIME_S`]).
     innovations_matched: u8,
-    /// Running mean of the valid axes' innovation `z - tau` (weighted by `1 / R_i`), s, and
-    /// the running mean of its squared deviation from that mean, s^2 (the bias watch of
-    /// [`delay_std_s`](DelayLoop::delay_std_s)).
-    bias_mean: T,
-    bias_spread: T,
+    /// The bias watch of [`delay_std_s`](DelayLoop::delay_std_s).
+    bias: sigma::BiasWatch<T>,
     locked: bool,
     following: bool,
     stable_since_us: Option<u64>,

@@ -2,6 +2,7 @@
 //! when every axis disagrees, the range's edges watched; axes that disagree
 //! with the best measured one left out.
 
+use super::sigma::BiasWatch;
 use super::{AXES, AxisPeak, DelayLoop};
 use crate::scalar::Scalar;
 
@@ -248,8 +249,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             .reset(z_sum / n, (r_sum / (n * n)).sqrt())
             .is_ok();
         if restarted {
-            self.bias_mean = T::zero();
-            self.bias_spread = T::zero();
+            self.bias = BiasWatch::BLANK;
             self.locked = false;
             self.following = true;
             self.stable_since_us = None;

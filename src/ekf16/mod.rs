@@ -634,7 +634,7 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
         );
         crate::integrity::Integrity {
             resets: base.resets,
-            ..crate::integrity::Integrity::judged(levels, config, true)
+            ..crate::integrity::Integrity::judged(levels, config, !self.core.imu_jump_pending())
         }
     }
 }

@@ -181,7 +181,10 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let estimated = self.is_estimating();
         let levels = self.protection_levels();
         let limits = &self.config.ekf.integrity;
-        let judged = Integrity::judged(levels, limits, aligned);
+        // While an IMU time jump waits for confirmation the present may be a gap beyond the
+        // estimate (after a 2 s gap it was: tilt, position and velocity all beyond their
+        // alert limits for that sample): nothing is vouched for.
+        let judged = Integrity::judged(levels, limits, aligned && !self.imu_clock.jump_pending());
         Health {
             t_us: self.imu_clock.last(),
             alignment,

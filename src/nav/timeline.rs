@@ -303,6 +303,12 @@ impl StreamClock {
         self.last
     }
 
+    /// A sample too far ahead is waiting for the next one to confirm the jump: the present
+    /// may be that far beyond the last accepted time.
+    pub(crate) fn jump_pending(&self) -> bool {
+        self.candidate.is_some()
+    }
+
     /// Checks `t_us` of stream `stream`; `ahead_of` is the time it may not
     /// exceed by more than `max_jump_us` (`None`: the stream's own last time,
     /// with confirmation by a second sample). Accepted times become the last.

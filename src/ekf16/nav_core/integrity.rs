@@ -316,8 +316,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// What the filter vouches for: the protection levels of `P` at the configured risk,
-    /// inflated by the monitor, each valid when within its alert limit and the filter is
-    /// initialized; `delay_std_s` the delay's standard deviation where the filter estimates
+    /// inflated by the monitor, each valid when within its alert limit, the filter is
+    /// initialized and no IMU time jump waits for confirmation; `delay_std_s` the delay's standard deviation where the filter estimates
     /// one. `resets` counts the GPS block resets.
     pub(crate) fn integrity(&self, delay_std_s: Option<T>) -> Integrity<T> {
         if !self.is_initialized() {
@@ -336,8 +336,14 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let r = self.refusals;
         Integrity {
             resets: r.gps_position_resets.saturating_add(r.gps_velocity_resets),
-            ..Integrity::judged(levels, config, true)
+            ..Integrity::judged(levels, config, !self.imu_jump_pending())
         }
+    }
+
+    /// An IMU sample too far ahead waits for the next one to confirm the jump: the present
+    /// may be that far beyond the state's time, so nothing is valid until it is decided.
+    pub(crate) fn imu_jump_pending(&self) -> bool {
+        self.imu_candidate_us.is_some()
     }
 }
 

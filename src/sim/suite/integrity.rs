@@ -40,12 +40,18 @@
 //! **JSON** ([`IntegrityResult::to_json`]): `seeds`, `scenarios`, `duration_s`, `integrity`:
 //! per row `name`, `passed`, `measured` (`null` when not finite), `limit`; and `details`: per
 //! row name, what it adds (MI seconds per quantity, epochs counted, the runs where the tilt
-//! error never reached 30 deg).
+//! error never reached 30 deg; for `availability_clean`, each flag's share and `bound`, the
+//! availability the run's information bound allows, [`BoundAvailability`]); `stanford`: per
+//! quantity (tilt, heading, horizontal, velocity) the navigator's epochs over all its runs by
+//! region of the Stanford diagram ([`Stanford`], [`StanfordRegions`]), which `reproduce`
+//! draws as SVG under `target/integrity/`.
 
 use super::setup::{DelayStart, calibrated_start, ekf16_config, proposed};
 use super::{Progress, ProgressFn, Steps, SuiteError, Task, json_number, parallel_map};
 use crate::estimate::Navigator;
+use crate::integrity::protection_factors;
 use crate::nav::DelayCompensatedNav;
+use crate::sim::bound::{BoundConfig, trajectory_bound};
 use crate::sim::faults::{
     Fault, FaultySimulation, OnTimeBackwards, base_config_in, fault_suite_in, feed, inflight_config,
 };
@@ -178,6 +184,123 @@ impl Job {
     }
 }
 
+/// Bins per axis of a [`Stanford`] diagram.
+pub const STANFORD_BINS: usize = 60;
+/// A [`Stanford`] diagram's axes span this many alert limits; larger values fall in the last
+/// bin.
+pub const STANFORD_SPAN_AL: f64 = 3.0;
+/// The quantities of the Stanford diagrams, in the order of [`IntegrityResult::stanford`]:
+/// name and unit.
+pub const STANFORD_QUANTITIES: [(&str, &str); 4] = [
+    ("tilt", "deg"),
+    ("heading", "deg"),
+    ("horizontal", "m"),
+    ("velocity", "m/s"),
+];
+
+/// The epochs of a Stanford diagram by region. Available means the quantity's flag is valid
+/// (its PL within the alert limit AL, and the estimator usable).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StanfordRegions {
+    /// Available, error within the PL.
+    pub nominal: u64,
+    /// Available, error above the PL but within the AL: misleading information.
+    pub misleading: u64,
+    /// Available, error above the AL (and the PL): hazardously misleading.
+    pub hazardous: u64,
+    /// Not available, error within the PL.
+    pub unavailable: u64,
+    /// Not available, error above the PL.
+    pub unavailable_misleading: u64,
+}
+
+/// The Stanford diagram of one quantity: epochs counted by error (x) and protection level
+/// (y), each in [`STANFORD_BINS`] bins over `[0, STANFORD_SPAN_AL x AL)` (larger values and
+/// an infinite PL in the last bin), available and not apart, and by region. A NaN error
+/// counts as above every level.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stanford {
+    /// The alert limit, in the quantity's unit.
+    pub alert_limit: f64,
+    /// Available epochs, row-major by PL bin: `counts[pl_bin * STANFORD_BINS + error_bin]`.
+    pub counts: Vec<u64>,
+    /// Epochs not available (the flag not valid: the PL above the AL, or the estimator not
+    /// usable), as `counts`.
+    pub unavailable_counts: Vec<u64>,
+    /// The epochs by region.
+    pub regions: StanfordRegions,
+}
+
+impl Stanford {
+    fn new(alert_limit: f64) -> Self {
+        Self {
+            alert_limit,
+            counts: vec![0; STANFORD_BINS * STANFORD_BINS],
+            unavailable_counts: vec![0; STANFORD_BINS * STANFORD_BINS],
+            regions: StanfordRegions::default(),
+        }
+    }
+
+    /// The bin of `value` (NaN and infinity in the last).
+    fn bin(&self, value: f64) -> usize {
+        let x = value / (STANFORD_SPAN_AL * self.alert_limit) * STANFORD_BINS as f64;
+        if x.is_nan() {
+            return STANFORD_BINS - 1;
+        }
+        (x.max(0.0) as usize).min(STANFORD_BINS - 1)
+    }
+
+    fn add(&mut self, error: f64, level: f64, available: bool) {
+        let i = self.bin(level) * STANFORD_BINS + self.bin(error);
+        if available {
+            self.counts[i] += 1;
+        } else {
+            self.unavailable_counts[i] += 1;
+        }
+        let covered = error <= level;
+        let r = &mut self.regions;
+        match (available, covered) {
+            (true, true) => r.nominal += 1,
+            (true, false) if error <= self.alert_limit => r.misleading += 1,
+            (true, false) => r.hazardous += 1,
+            (false, true) => r.unavailable += 1,
+            (false, false) => r.unavailable_misleading += 1,
+        }
+    }
+
+    fn merge(&mut self, other: &Stanford) {
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            *a += b;
+        }
+        for (a, b) in self
+            .unavailable_counts
+            .iter_mut()
+            .zip(&other.unavailable_counts)
+        {
+            *a += b;
+        }
+        let (r, o) = (&mut self.regions, &other.regions);
+        r.nominal += o.nominal;
+        r.misleading += o.misleading;
+        r.hazardous += o.hazardous;
+        r.unavailable += o.unavailable;
+        r.unavailable_misleading += o.unavailable_misleading;
+    }
+
+    /// The regions as JSON (`alert_limit` and the five counts).
+    fn to_json(&self) -> Value {
+        let r = &self.regions;
+        json!({
+            "alert_limit": self.alert_limit,
+            "nominal": r.nominal,
+            "misleading": r.misleading,
+            "hazardous": r.hazardous,
+            "unavailable": r.unavailable,
+            "unavailable_misleading": r.unavailable_misleading,
+        })
+    }
+}
+
 /// What one run measured, per epoch accumulated.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RunStats {
@@ -207,6 +330,8 @@ pub struct RunStats {
     pub reported_at_s: Option<f64>,
     /// End of the run, s.
     pub end_s: f64,
+    /// Time of the first estimate, s.
+    pub first_estimate_s: Option<f64>,
 }
 
 /// A run's measurements and a sample of its tilt protection levels.
@@ -214,17 +339,72 @@ pub struct RunStats {
 struct RunOutcome {
     stats: RunStats,
     tilt_pl_deg: Vec<f64>,
+    /// On the navigator's clean runs: what the run's information bound allows.
+    bound: Option<BoundAvailability>,
+    /// The run's Stanford diagrams (tilt, heading, horizontal, velocity).
+    stanford: Vec<Stanford>,
+}
+
+/// The availability the run's information allows: the epochs from the navigator's first
+/// estimate at which the protection levels of a filter with the run's linearized bound
+/// (`sim::trajectory_bound`, the whole magnetometer field, the filters' prior) as its covariance
+/// would be within the alert limits. A lower bound on the levels of any estimator whose
+/// covariance is at least the bound: the 2-D and 3-D levels use the mean eigenvalue
+/// (`trace / 2`, `trace / 3`), which the largest one the levels take is never below.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BoundAvailability {
+    /// Epochs counted.
+    pub epochs: u64,
+    /// Of those, epochs with tilt, heading and velocity all within their alert limits.
+    pub all: u64,
+    /// Of those, epochs with tilt, heading, velocity each within its alert limit.
+    pub each: [u64; 3],
+}
+
+/// [`BoundAvailability`] of `events` (a clean run of `sim`) from `from_s`.
+fn bound_availability(
+    events: &[SimEvent],
+    sim: &SimConfig,
+    from_s: f64,
+) -> Result<BoundAvailability, crate::Error> {
+    let bound = trajectory_bound(events, sim, &BoundConfig::for_sensors(&sim.sensors))?;
+    let limits = ekf16_config::<f64>(sim).integrity;
+    let (k1, k2, k3) = protection_factors(limits.risk);
+    let mut a = BoundAvailability::default();
+    for sample in bound
+        .samples
+        .iter()
+        .filter(|b| b.t_us as f64 * 1e-6 >= from_s)
+    {
+        let std = &sample.std;
+        let within = [
+            k2 * (std.tilt_rad / 2f64.sqrt()).to_degrees() <= limits.tilt_alert_limit_deg,
+            k1 * std.heading_rad.to_degrees() <= limits.heading_alert_limit_deg,
+            k3 * std.velocity_m_s / 3f64.sqrt() <= limits.velocity_alert_limit_m_s,
+        ];
+        a.epochs += 1;
+        for (n, _) in a.each.iter_mut().zip(within).filter(|(_, w)| *w) {
+            *n += 1;
+        }
+        if within.iter().all(|&w| w) {
+            a.all += 1;
+        }
+    }
+    Ok(a)
 }
 
 /// Feeds `events` to `nav` and measures it (module docs).
+/// `alert_limits`: tilt, heading, horizontal, velocity, for the Stanford diagrams.
 fn measure<N: Navigator<f64>>(
     events: impl Iterator<Item = SimEvent>,
     mut nav: N,
     on_backwards: OnTimeBackwards,
     mut reset: impl FnMut(&mut N),
     skip_s: f64,
+    alert_limits: [f64; 4],
 ) -> RunOutcome {
     let mut s = RunStats::default();
+    let mut stanford: Vec<Stanford> = alert_limits.iter().map(|&al| Stanford::new(al)).collect();
     let mut tilt_pl = Vec::new();
     let mut last_t: Option<f64> = None;
     let mut previous_mi = [false; 4];
@@ -261,6 +441,9 @@ fn measure<N: Navigator<f64>>(
             }
             continue;
         };
+        if !started {
+            s.first_estimate_s = Some(t);
+        }
         started = true;
         let (tilt, heading) = tilt_heading_error_rad(&est.attitude, &truth.attitude);
         let (tilt, heading) = (tilt.to_degrees(), heading.to_degrees());
@@ -274,6 +457,9 @@ fn measure<N: Navigator<f64>>(
             (integrity.horizontal_valid, horizontal, l.horizontal_m),
             (integrity.velocity_valid, velocity, l.velocity_m_s),
         ];
+        for (diagram, &(valid, error, level)) in stanford.iter_mut().zip(&quantities) {
+            diagram.add(error, level, valid);
+        }
         for (q, &(valid, error, level)) in quantities.iter().enumerate() {
             if valid {
                 s.valid_pairs += 1;
@@ -327,6 +513,8 @@ fn measure<N: Navigator<f64>>(
     RunOutcome {
         stats: s,
         tilt_pl_deg: tilt_pl,
+        bound: None,
+        stanford,
     }
 }
 
@@ -354,6 +542,9 @@ pub struct IntegrityResult {
     pub starts: Vec<(Scenario, DelayStart)>,
     /// The rows, in the module docs' order.
     pub rows: Vec<IntegrityRow>,
+    /// The navigator's Stanford diagrams over all its runs (the faults and the clean runs), in
+    /// the order of [`STANFORD_QUANTITIES`]; empty when no navigator run was selected.
+    pub stanford: Vec<Stanford>,
     /// Wall time of the runs, s.
     pub wall_s: f64,
 }
@@ -465,20 +656,45 @@ impl Job {
         let events = FaultySimulation::new(self.sim.clone(), &self.faults)
             .map_err(|e| SuiteError::config(self.name(), e))?;
         let refused = |e| SuiteError::config(self.estimator.name(), e);
+        let l = ekf16_config::<f64>(&self.sim).integrity;
+        let limits = [
+            l.tilt_alert_limit_deg,
+            l.heading_alert_limit_deg,
+            l.horizontal_alert_limit_m,
+            l.velocity_alert_limit_m_s,
+        ];
         Ok(match self.estimator {
             Estimator::Proposed => {
                 let nav = proposed(&self.sim, start, None).map_err(refused)?;
-                measure(
-                    events,
+                if self.purpose != Purpose::Clean {
+                    return Ok(measure(
+                        events,
+                        nav,
+                        self.on_backwards,
+                        DelayCompensatedNav::reset,
+                        skip_s,
+                        limits,
+                    ));
+                }
+                let events: Vec<SimEvent> = events.collect();
+                let mut outcome = measure(
+                    events.iter().cloned(),
                     nav,
                     self.on_backwards,
                     DelayCompensatedNav::reset,
                     skip_s,
-                )
+                    limits,
+                );
+                let from_s = outcome.stats.first_estimate_s.unwrap_or(f64::INFINITY);
+                outcome.bound = Some(
+                    bound_availability(&events, &self.sim, from_s)
+                        .map_err(|e| SuiteError::config("bound", e))?,
+                );
+                outcome
             }
             Estimator::Ekf16 => {
                 let filter = Ekf16::new(ekf16_config::<f64>(&self.sim)).map_err(refused)?;
-                measure(events, filter, self.on_backwards, |_| {}, skip_s)
+                measure(events, filter, self.on_backwards, |_| {}, skip_s, limits)
             }
             Estimator::Aekf17 => {
                 let mut config = AugmentedEkf17Config::with_nav(ekf16_config::<f64>(&self.sim));
@@ -487,7 +703,7 @@ impl Job {
                     config.initial_delay_std_s = std;
                 }
                 let filter = AugmentedEkf17::new(config).map_err(refused)?;
-                measure(events, filter, self.on_backwards, |_| {}, skip_s)
+                measure(events, filter, self.on_backwards, |_| {}, skip_s, limits)
             }
         })
     }
@@ -555,10 +771,25 @@ pub fn run(
     if let Some(only) = &options.rows {
         rows.retain(|r| only.contains(&r.name));
     }
+    let mut stanford: Vec<Stanford> = Vec::new();
+    for (_, o) in jobs
+        .iter()
+        .zip(&outcomes)
+        .filter(|(j, _)| j.estimator == Estimator::Proposed)
+    {
+        if stanford.is_empty() {
+            stanford.clone_from(&o.stanford);
+        } else {
+            for (a, b) in stanford.iter_mut().zip(&o.stanford) {
+                a.merge(b);
+            }
+        }
+    }
     Ok(IntegrityResult {
         options: options.clone(),
         starts,
         rows,
+        stanford,
         wall_s: t0.elapsed().as_secs_f64(),
     })
 }
@@ -669,6 +900,26 @@ fn rows(jobs: &[Job], outcomes: &[RunOutcome]) -> Vec<IntegrityRow> {
         let n: u64 = nav_clean.iter().map(|o| o.stats.valid_epochs[k]).sum();
         details[format!("{flag}_available")] = json_number(n as f64 / epochs as f64);
     }
+    let bound =
+        nav_clean
+            .iter()
+            .filter_map(|o| o.bound)
+            .fold(BoundAvailability::default(), |mut a, b| {
+                a.epochs += b.epochs;
+                a.all += b.all;
+                for (x, y) in a.each.iter_mut().zip(b.each) {
+                    *x += y;
+                }
+                a
+            });
+    let share = |n: u64| json_number(n as f64 / bound.epochs as f64);
+    details["bound"] = json!({
+        "epochs": bound.epochs,
+        "available": share(bound.all),
+        "tilt_available": share(bound.each[0]),
+        "heading_available": share(bound.each[1]),
+        "velocity_available": share(bound.each[2]),
+    });
     rows.push(IntegrityRow {
         name: "availability_clean".into(),
         passed: availability >= AVAILABILITY_LIMIT,
@@ -780,6 +1031,12 @@ impl IntegrityResult {
             "duration_s": 60.0 * self.options.scale,
             "integrity": rows,
             "details": details,
+            "stanford": self
+                .stanford
+                .iter()
+                .zip(STANFORD_QUANTITIES)
+                .map(|(d, (name, _))| (name.to_string(), d.to_json()))
+                .collect::<serde_json::Map<String, Value>>(),
         })
     }
 }
@@ -824,6 +1081,8 @@ mod tests {
             .map(|_| RunOutcome {
                 stats: RunStats::default(),
                 tilt_pl_deg: Vec::new(),
+                bound: None,
+                stanford: Vec::new(),
             })
             .collect();
         let names: Vec<String> = rows(&jobs, &outcomes).into_iter().map(|r| r.name).collect();
@@ -862,6 +1121,31 @@ mod tests {
             expected.push(r.into());
         }
         assert_eq!(names, expected);
+    }
+
+    /// What the information bound allows at the start of a clean run: the accelerometer-bias
+    /// prior (+-0.1 g) keeps the tilt's level near 12 deg, above the 5 deg alert limit, so no
+    /// epoch of the first 3 s is available (nor is the heading, which the field's inclination
+    /// ties to the tilt); the velocity's is.
+    #[test]
+    fn the_bound_keeps_tilt_unavailable_at_the_start() {
+        let config = SimConfig {
+            duration_s: 3.0,
+            ..base_config_in(Scenario::Low, 1, 1.0)
+        };
+        let events: Vec<SimEvent> = FaultySimulation::new(config.clone(), &[])
+            .unwrap()
+            .collect();
+        let imu = events
+            .iter()
+            .filter(|e| matches!(e, SimEvent::Imu { .. }))
+            .count() as u64;
+        let a = bound_availability(&events, &config, 0.0).unwrap();
+        assert_eq!(a.epochs, imu);
+        assert_eq!((a.all, a.each[0]), (0, 0), "{a:?}");
+        let from_1s = bound_availability(&events, &config, 1.0).unwrap();
+        assert!(from_1s.epochs < imu && from_1s.epochs > 0);
+        assert_eq!(from_1s.each[2], from_1s.epochs, "{from_1s:?}");
     }
 
     /// Misleading epochs are counted only while valid; their time is the epoch's length.
@@ -910,6 +1194,7 @@ mod tests {
             OnTimeBackwards::Ignore,
             |_| {},
             0.0,
+            [5.0, 10.0, 10.0, 2.0],
         );
         let honest = measure(
             events(),
@@ -917,6 +1202,7 @@ mod tests {
             OnTimeBackwards::Ignore,
             |_| {},
             0.0,
+            [5.0, 10.0, 10.0, 2.0],
         );
         let s = liar.stats;
         assert!(s.epochs > 1000 && s.valid_pairs == s.epochs, "{s:?}");
@@ -925,6 +1211,50 @@ mod tests {
         assert_eq!(honest.stats.mi_pairs, 0);
         assert_eq!(honest.stats.mi_s, 0.0);
         assert_eq!(honest.stats.all_valid_epochs, 0);
+        // The Stanford diagrams count the same epochs: the liar's tilt is all misleading, the
+        // honest one's all unavailable; every diagram's bins hold every epoch.
+        let r = liar.stanford[0].regions;
+        assert_eq!(r.misleading + r.hazardous, s.epochs, "{r:?}");
+        let r = honest.stanford[0].regions;
+        assert_eq!(r.unavailable + r.unavailable_misleading, s.epochs, "{r:?}");
+        for d in liar.stanford.iter().chain(&honest.stanford) {
+            let all = d.counts.iter().chain(&d.unavailable_counts).sum::<u64>();
+            assert_eq!(all, s.epochs);
+        }
+        assert_eq!(liar.stanford[0].counts.iter().sum::<u64>(), s.epochs);
+        assert_eq!(honest.stanford[0].counts.iter().sum::<u64>(), 0);
+    }
+
+    /// A Stanford diagram's regions and bins: the diagonal and the alert limit split them.
+    #[test]
+    fn stanford_regions_split_on_the_level_and_the_limit() {
+        let mut d = Stanford::new(5.0);
+        d.add(1.0, 2.0, true); // nominal
+        d.add(3.0, 2.0, true); // misleading
+        d.add(6.0, 2.0, true); // hazardous
+        d.add(f64::NAN, 2.0, true); // hazardous: a NaN error is above every level
+        d.add(1.0, 8.0, false); // unavailable
+        d.add(9.0, f64::INFINITY, false); // unavailable
+        d.add(9.0, 8.0, false); // unavailable, misleading
+        let r = d.regions;
+        assert_eq!(
+            (
+                r.nominal,
+                r.misleading,
+                r.hazardous,
+                r.unavailable,
+                r.unavailable_misleading
+            ),
+            (1, 1, 2, 2, 1)
+        );
+        // 60 bins over 15: 0.25 per bin; 1.0 error and 2.0 level is bin (8, 4).
+        assert_eq!(d.counts[8 * STANFORD_BINS + 4], 1);
+        // An infinite level and a NaN error fall in the last bins.
+        assert_eq!(
+            d.unavailable_counts[(STANFORD_BINS - 1) * STANFORD_BINS + 36],
+            1
+        );
+        assert_eq!(d.counts[8 * STANFORD_BINS + STANFORD_BINS - 1], 1);
     }
 
     #[test]
