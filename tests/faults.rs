@@ -311,6 +311,10 @@ fn every_row_of_the_suite_passes_at_full_scale() {
         .map(|r| r.name)
         .collect();
     assert_eq!(failed, KNOWN_FAILURES, "rows failing: {results:?}");
+    // The hard-iron row fails, but a field whose seen offset can turn the heading beyond its
+    // alert limit is not fused: 9.4 times the clean yaw RMSE when it was, 5.6 since.
+    let hard_iron = &results[12];
+    assert!(hard_iron.measured < 7.0, "{hard_iron:?}");
     let mag = &results[10];
     assert!(
         mag.note

@@ -194,7 +194,9 @@ pub struct FilterRefusals {
     pub mag_invalid: u32,
     /// Magnetometer samples duplicated or going back in time.
     pub mag_time: u32,
-    /// Magnetometer updates rejected by the heading-innovation gate (`mag_gate`).
+    /// Magnetometer updates rejected by the heading-innovation gate (`mag_gate`), and samples
+    /// refused while the field offset the monitor holds can turn the heading beyond its alert
+    /// limit (see `mag_field_offset`).
     pub mag_rejected: u32,
     /// Magnetometer samples refused as disturbed: field norm or inclination
     /// too far from the learned field (`mag_norm_tolerance`,

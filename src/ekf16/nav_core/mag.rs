@@ -6,7 +6,9 @@
 //! # Mode switching (units: µs, rad; see `docs/math.md`)
 //! - **no fusion**: the sample's norm or inclination is off the learned
 //!   field (`mag_norm_tolerance`, `mag_inclination_tolerance_rad`): refused
-//!   as disturbed.
+//!   as disturbed; or the field offset the monitor holds (`mag_monitor.rs`)
+//!   can turn the heading beyond its alert limit: refused (counted as
+//!   `mag_rejected`).
 //! - **3-axis** (`mag_three_axis`): the field has been clean for
 //!   [`MAG_THREE_AXIS_HOLD_US`] (never two samples in a row disturbed or
 //!   gated out) and the learned inclination is within
@@ -62,11 +64,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             return Ok(MagOutcome::Stored);
         }
         let field = self.check_mag_field(&m.field_body);
-        let mode = self.mag_mode(field.is_some());
+        let trusted = field.is_some() && !self.mag_offset_beyond_alert();
+        let mode = self.mag_mode(trusted);
         let record = if mode == MagMode::ThreeAxis {
             self.fuse_mag_field(m.t_us, &m.field_body)?
         } else {
-            self.fuse_mag_heading(m.t_us, &m.field_body, field.is_some())?
+            self.fuse_mag_heading(m.t_us, &m.field_body, trusted)?
         };
         let dt_us = self.mag_clock_us.map_or(0, |t| m.t_us.saturating_sub(t));
         self.finish_mag(m.t_us, mode, field, record);
@@ -98,6 +101,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if self.mag_monitor.update(&reading, w, r, k1) {
             bump(&mut self.refusals.mag_field_offset);
         }
+    }
+
+    /// Whether the field offset seen by the monitor can turn the heading by more than its alert
+    /// limit: `beta > sin(AL) cos I` (`beta` the held relative offset, `I` the configured
+    /// inclination; the heading of the horizontal field, `|m| cos I` long, turns by up to
+    /// `asin(beta / cos I)`). Such a field is not fused: the heading coasts on the gyro, and
+    /// the navigator's yaw estimator takes over once the magnetometer is stale.
+    /// (`sin(AL_h) cos I` is computed when the filter is configured.)
+    fn mag_offset_beyond_alert(&self) -> bool {
+        self.mag_monitor.offset() > self.mag_offset_refusal
     }
 
     /// The mode of a sample whose field is `consistent` (or not).

@@ -57,9 +57,10 @@
 //! `asin(min(1, beta / cos I))` by an offset `beta |m|`; the 3-axis update turns the tilt by up
 //! to `asin(min(1, beta))` (the angle between `m` and `m + b`). Both are added to the heading
 //! and tilt levels (degrees), and while `beta > 0` the magnetometer is fused heading-only (a
-//! field known to be wrong does not level the tilt). `beta` is a lower bound of the offset:
-//! an offset seen over a small sweep of attitudes is larger than it says, and one the vehicle
-//! never turned against is not seen at all (docs/integrity.md).
+//! field known to be wrong does not level the tilt); while `beta > sin(AL_h) cos I` (`AL_h` the
+//! heading alert limit) it is not fused at all (`NavCore::mag_offset_beyond_alert`). `beta` is
+//! a lower bound of the offset: an offset seen over a small sweep of attitudes is larger than
+//! it says, and one the vehicle never turned against is not seen at all (docs/integrity.md).
 
 use crate::scalar::{Scalar, zeros_const};
 use nalgebra::Vector3;

@@ -445,6 +445,10 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// declination (computed once: four trigonometric calls per
     /// magnetometer sample saved).
     field_ned: Vector3<T>,
+    /// The relative field offset beyond which the magnetometer is not fused,
+    /// `sin(AL_h) cos I` (`mag.rs`, `mag_offset_beyond_alert`), from the configuration
+    /// (infinite when the heading alert limit is 90 deg or more).
+    mag_offset_refusal: T,
     x: SVector<T, N>,
     p: SMatrix<T, N, N>,
     /// Extra states (indices >= 16): initial values, variances, intensities.
@@ -536,6 +540,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         Self {
             config: Ekf16Config::ZEROED,
             field_ned: zeros_const(),
+            mag_offset_refusal: T::ZERO,
             x: zeros_const(),
             p: zeros_const(),
             extra_initial: zeros_const(),
@@ -621,6 +626,13 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         self.config = config;
         self.field_ned = magnetic_field_ned(config.mag_inclination_rad, config.mag_declination_rad);
+        let alert_rad =
+            config.integrity.heading_alert_limit_deg * T::lit(core::f64::consts::PI / 180.0);
+        self.mag_offset_refusal = if alert_rad < T::lit(core::f64::consts::FRAC_PI_2) {
+            alert_rad.sin() * config.mag_inclination_rad.cos()
+        } else {
+            T::lit(f64::INFINITY)
+        };
         self.x.fill(T::zero());
         self.p.fill(T::zero());
         self.extra_initial.fill(T::zero());
