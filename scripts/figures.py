@@ -407,6 +407,19 @@ def integrity():
             *table(["row", "measured", "limit", ""], rows)]
 
 
+def integrity_stanford():
+    doc = load("integrity.json")
+    units = {"tilt": "deg", "heading": "deg", "horizontal": "m", "velocity": "m/s"}
+    rows = []
+    for q, unit in units.items():
+        d = doc["stanford"][q]
+        rows.append([f"{q} (AL {d['alert_limit']:g} {unit})", thousands(d["nominal"]),
+                     thousands(d["misleading"]), thousands(d["hazardous"]),
+                     thousands(d["unavailable"]), thousands(d["unavailable_misleading"])])
+    return table(["quantity", "nominal", "misleading", "hazardous", "unavailable",
+                  "unavailable, error above PL"], rows)
+
+
 # What each row of the delay suite tests (descriptions), the digits of its figure, and what
 # follows its bound. A row with a bound is judged on its ratio to the bound (its limit).
 DELAY_SUITE = {
@@ -863,6 +876,7 @@ RENDERERS = {
     "sweep-delay": lambda: sweep("delay"),
     "faults": faults,
     "integrity": integrity,
+    "integrity-stanford": integrity_stanford,
     "delay-suite": delay_suite,
     "cortex-m4": cortex_m4,
     "readme-cortex-m4": readme_cortex_m4,

@@ -288,7 +288,7 @@ mod tests {
         assert!(std < 0.011, "{std}");
     }
 
-    /// The first windows after a calibrated start are one measurement: three windows 0.2 s
+    /// The first windows after a calibrated start are one measurement: three windows 0.1 s
     /// apart, 80 ms from the estimate, raise no bias (counted as three independent windows,
     /// they made it 71 ms); the same offset held for 20 s is a bias.
     fn bias_watch_waits_for_independent_windows<T: Scalar>() {
