@@ -317,8 +317,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// What the filter vouches for: the protection levels of `P` at the configured risk,
     /// inflated by the monitor, each valid when within its alert limit, the filter is
-    /// initialized and no IMU time jump waits for confirmation; `delay_std_s` the delay's standard deviation where the filter estimates
-    /// one. `resets` counts the GPS block resets.
+    /// initialized and no IMU time jump waits for confirmation; `delay_std_s` the delay's
+    /// standard deviation where the filter estimates one. `resets` counts the GPS block resets.
     pub(crate) fn integrity(&self, delay_std_s: Option<T>) -> Integrity<T> {
         if !self.is_initialized() {
             return Integrity::none();
