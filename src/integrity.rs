@@ -342,10 +342,12 @@ impl<T: Scalar> ProtectionLevels<T> {
 }
 
 impl<T: Scalar> ProtectionLevels<T> {
-    /// The heading level with the tilt's share of a magnetometer heading: a tilt error `e`
-    /// turns the field's horizontal projection by up to `tan(I) e` (`I` the field's
-    /// inclination), so the heading's variance gains `s^2`, `s = |tan I|` times the tilt's
-    /// standard deviation (rad, `heading_std_rad`): `h' = sqrt(h^2 + (k1 s)^2)` (degrees).
+    /// The heading level with the tilt's share of a magnetometer heading: a tilt error `e` about
+    /// the field's horizontal direction turns the field's horizontal projection by `tan(I) e`
+    /// (`I` the field's inclination), so the heading's variance gains `s^2`, `s` that share's
+    /// standard deviation (rad, `heading_std_rad`; the filter's gives the larger of what its
+    /// fused samples carried and what a sample would carry now): `h' = sqrt(h^2 + (k1 s)^2)`
+    /// (degrees).
     pub fn with_heading_tilt_coupling(self, heading_std_rad: T, risk: T) -> Self {
         let (k1, _, _) = protection_factors(risk);
         let share = k1 * heading_std_rad * T::lit(180.0 / core::f64::consts::PI);

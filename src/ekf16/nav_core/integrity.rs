@@ -268,12 +268,15 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         block += tangent;
     }
 
-    /// The heading's standard deviation from the tilt once a magnetometer update was fused,
-    /// rad: `|tan I|` of the configured inclination times the tilt's standard deviation; 0
-    /// before (`ProtectionLevels::with_heading_tilt_coupling`).
+    /// The heading's standard deviation from tilt errors once a magnetometer sample was fused
+    /// (0 before), rad: the larger of the share the fused heading-only samples carried into
+    /// the heading (`mag.rs`, `remember_heading_tilt_coupling`) and the share a sample would
+    /// carry now, `|tan I|` of the configured inclination times the tilt's standard deviation
+    /// about the field's direction (`ProtectionLevels::with_heading_tilt_coupling`).
     pub(crate) fn heading_tilt_coupling(&self) -> T {
         if self.mag_fused_us.is_some() {
-            self.config.mag_inclination_rad.tan().abs() * self.tilt_std()
+            let (_, now) = self.heading_std_and_tilt_share();
+            now.max(self.heading_tilt_std)
         } else {
             T::zero()
         }

@@ -66,11 +66,16 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let field = self.check_mag_field(&m.field_body);
         let trusted = field.is_some() && !self.mag_offset_beyond_alert();
         let mode = self.mag_mode(trusted);
+        let (heading_before, share) = self.heading_std_and_tilt_share();
         let record = if mode == MagMode::ThreeAxis {
             self.fuse_mag_field(m.t_us, &m.field_body)?
         } else {
             self.fuse_mag_heading(m.t_us, &m.field_body, trusted)?
         };
+        if record.fused {
+            let kept = self.heading_variance_kept(heading_before);
+            self.remember_heading_tilt_coupling(mode, kept, share);
+        }
         let dt_us = self.mag_clock_us.map_or(0, |t| m.t_us.saturating_sub(t));
         self.finish_mag(m.t_us, mode, field, record);
         self.monitor_mag(&m.field_body, mode, dt_us);
@@ -270,6 +275,65 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let norm_ok = (sample.0 / norm - T::one()).abs() <= c.mag_norm_tolerance;
         let inclination_ok = (sample.1 - inclination).abs() <= c.mag_inclination_tolerance_rad;
         (norm_ok && inclination_ok).then_some(sample)
+    }
+
+    /// The heading's standard deviation and the heading's share of the tilt's, rad: a
+    /// magnetometer heading is turned only by the tilt about the horizontal field's direction
+    /// (with the field `(H, 0, Z)` along `a` and a small attitude error `dtheta`, the field seen
+    /// through the estimate has the east component `H dtheta_z - Z dtheta_a`: its heading is
+    /// off by `dtheta_z - tan(I) dtheta_a`), so the share is `|tan I| sqrt(a^T C a)`, `C` the
+    /// attitude error's covariance. With the unit field `f = (cos I cos D, cos I sin D, sin I)`
+    /// (`field_ned`) it needs no trigonometry: `sqrt(f_z^2 (f_x^2 C_nn + 2 f_x f_y C_ne +
+    /// f_y^2 C_ee)) / (f_x^2 + f_y^2)`.
+    pub(super) fn heading_std_and_tilt_share(&self) -> (T, T) {
+        let cov = crate::integrity::attitude_error_covariance(
+            &quaternion_of(&self.x),
+            &self.p.fixed_view::<4, 4>(QUAT, QUAT).into_owned(),
+        );
+        let f = &self.field_ned;
+        let horizontal = f[0] * f[0] + f[1] * f[1];
+        let along = f[0] * f[0] * cov[(0, 0)]
+            + T::lit(2.0) * f[0] * f[1] * cov[(0, 1)]
+            + f[1] * f[1] * cov[(1, 1)];
+        let share = (f[2] * f[2] * along).max(T::zero()).sqrt() / horizontal;
+        (cov[(2, 2)].max(T::zero()).sqrt(), share)
+    }
+
+    /// After a sample fused in `mode`: the share of tilt error the heading holds, given the
+    /// share of the heading the update `kept` (`heading_variance_kept`) and the heading's share
+    /// of the tilt (`heading_std_and_tilt_share`) before it. A heading-only sample is the field's heading
+    /// seen through the estimated tilt, so a tilt error `e` about the field's direction turns
+    /// it by `tan(I) e`, and the update, which treats that error as fresh noise in every
+    /// sample, cannot know that successive samples share it. The update moves the heading a
+    /// fraction `k = 1 - kept` of the way to the sample and the heading keeps the rest of what
+    /// it had; as standard deviations added linearly (the samples share the error):
+    /// `c <- kept c + k s_tilt`. A 3-axis sample models the field through the whole attitude
+    /// (its tilt share is in `P`'s correlations): it adds nothing and replaces its fraction of
+    /// the share. So a heading built while the tilt was 3 deg off stays covered after the tilt
+    /// has converged, until later samples replace it.
+    fn remember_heading_tilt_coupling(&mut self, mode: MagMode, kept: T, share: T) {
+        let share = if mode == MagMode::ThreeAxis {
+            T::zero()
+        } else {
+            share
+        };
+        self.heading_tilt_std = kept * self.heading_tilt_std + (T::one() - kept) * share;
+    }
+
+    /// `s_after^2 / s_before^2` of the heading across an update (`heading_before` the standard
+    /// deviation before it), at most 1 (1 for a heading with no variance before): `1 - k`, `k`
+    /// the update's heading gain. For a 3-axis update it also counts what the update learns of
+    /// the heading through its correlations with the tilt and the biases, and replaces the
+    /// remembered share more slowly than `1 - g^T K H d` (the gain on a heading error alone)
+    /// would; that faster form left `mi_reset_inflight` at 1.44 s (docs/integrity.md).
+    fn heading_variance_kept(&self, heading_before: T) -> T {
+        let (heading_after, _) = self.heading_std_and_tilt_share();
+        if heading_before > T::zero() {
+            let ratio = heading_after / heading_before;
+            (ratio * ratio).min(T::one())
+        } else {
+            T::one()
+        }
     }
 
     /// The larger of the north and east standard deviations (rad) of the

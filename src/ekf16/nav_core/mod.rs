@@ -484,6 +484,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     gps_fused_us: Option<u64>,
     /// Time of the newest fused magnetometer sample, µs (as `gps_fused_us`).
     mag_fused_us: Option<u64>,
+    /// The heading's standard deviation from tilt errors the magnetometer updates fused into
+    /// it, rad (`mag.rs`, `remember_heading_tilt_coupling`).
+    heading_tilt_std: T,
     /// Per GPS block (position, velocity): time of the last fix that
     /// initialized the filter, had the block fused or reset it (or of the
     /// first rejected fix of a filter started from a state).
@@ -562,6 +565,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             mag_recorded: false,
             gps_fused_us: None,
             mag_fused_us: None,
+            heading_tilt_std: T::ZERO,
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
             gps_nis_mean: [T::ZERO; 2],
@@ -656,6 +660,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.mag_recorded = false;
         self.gps_fused_us = None;
         self.mag_fused_us = None;
+        self.heading_tilt_std = T::zero();
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
