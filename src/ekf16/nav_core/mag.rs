@@ -300,11 +300,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     }
 
     /// After a sample fused in `mode`: the share of tilt error the heading holds, given the
-    /// share of the heading the update `kept` (`heading_variance_kept`) and the heading's share
-    /// of the tilt (`heading_std_and_tilt_share`) before it. A heading-only sample is the field's heading
-    /// seen through the estimated tilt, so a tilt error `e` about the field's direction turns
-    /// it by `tan(I) e`, and the update, which treats that error as fresh noise in every
-    /// sample, cannot know that successive samples share it. The update moves the heading a
+    /// share of the heading the update `kept` (`heading_variance_kept`) and the heading's
+    /// share of the tilt (`heading_std_and_tilt_share`) before it. A heading-only sample is
+    /// the field's heading seen through the estimated tilt, so a tilt error `e` about the
+    /// field's direction turns it by `tan(I) e`, and the update, which treats that error as
+    /// fresh noise in every sample, cannot know that successive samples share it. The update moves the heading a
     /// fraction `k = 1 - kept` of the way to the sample and the heading keeps the rest of what
     /// it had; as standard deviations added linearly (the samples share the error):
     /// `c <- kept c + k s_tilt`. A 3-axis sample models the field through the whole attitude
@@ -322,10 +322,11 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// `s_after^2 / s_before^2` of the heading across an update (`heading_before` the standard
     /// deviation before it), at most 1 (1 for a heading with no variance before): `1 - k`, `k`
-    /// the update's heading gain. For a 3-axis update it also counts what the update learns of
-    /// the heading through its correlations with the tilt and the biases, and replaces the
-    /// remembered share more slowly than `1 - g^T K H d` (the gain on a heading error alone)
-    /// would; that faster form left `mi_reset_inflight` at 1.44 s (docs/integrity.md).
+    /// the update's heading gain. For a 3-axis update it is (on the simulator's runs) larger
+    /// than `1 - g^T K H d` (the gain on a heading error alone, `d` a unit turn about down in
+    /// the quaternion, `g` its heading row), so it replaces the remembered share more slowly;
+    /// that faster form left `mi_reset_inflight` at 1.44 s (docs/integrity.md): the 3-axis
+    /// samples after an in-flight start do not bring the heading back at that gain.
     fn heading_variance_kept(&self, heading_before: T) -> T {
         let (heading_after, _) = self.heading_std_and_tilt_share();
         if heading_before > T::zero() {
