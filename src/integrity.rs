@@ -312,6 +312,17 @@ impl<T: Scalar> ProtectionLevels<T> {
 }
 
 impl<T: Scalar> ProtectionLevels<T> {
+    /// The levels with `bias` m/s added to the velocity one: a velocity error the GPS
+    /// velocity innovations keep showing (their mean), which the covariance does not hold.
+    pub fn with_velocity_bias(self, bias: T) -> Self {
+        Self {
+            velocity_m_s: self.velocity_m_s + bias,
+            ..self
+        }
+    }
+}
+
+impl<T: Scalar> ProtectionLevels<T> {
     /// The levels of a state carried `span_s` seconds forward by the IMU from the state these
     /// levels bound: an attitude error `e` turns the specific force `f` (m/s², NED), so the
     /// carried velocity gains `|f x e| span` and the position `|f x e| span^2 / 2`, with

@@ -582,6 +582,12 @@ impl<T: Scalar> Ekf16<T> {
         self.core.position_velocity_bias()
     }
 
+    /// The norm of the GPS velocity innovations' mean, m/s, what the velocity level is raised
+    /// by (`src/ekf16/nav_core/integrity.rs`).
+    pub(crate) fn velocity_innovation_bias(&self) -> T {
+        self.core.velocity_innovation_bias()
+    }
+
     /// The heading's standard deviation from the tilt once a magnetometer update was fused,
     /// rad, else 0: the tilt's share of the heading level
     /// (`ProtectionLevels::with_heading_tilt_coupling`).

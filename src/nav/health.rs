@@ -268,6 +268,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         .with_attitude_variance(gap_attitude, risk)
         .inflated(position, velocity)
         .with_position_bias(self.ekf.position_velocity_bias())
+        .with_velocity_bias(self.ekf.velocity_innovation_bias())
         .with_heading_tilt_coupling(
             self.ekf.heading_tilt_coupling(),
             self.config.ekf.integrity.risk,

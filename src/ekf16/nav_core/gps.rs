@@ -62,6 +62,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_accepted_us = [Some(fix.t_us); 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
+        self.gps_velocity_innovation_mean = Vector3::zeros();
         self.monitor_position_velocity(&m, true, false);
         self.gps_clock_us = Some(fix.t_us);
         self.frame = frame;
@@ -253,6 +254,10 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let i = block as usize;
         self.gps_accepted_us[i] = Some(m.t_us);
         self.gps_nis[i] = (T::zero(), 0);
+        if block == GpsBlock::Velocity {
+            // The velocity is the fix's now: what the innovations showed is gone with it.
+            self.gps_velocity_innovation_mean = Vector3::zeros();
+        }
         self.last_gps_reset = ZeroOption::Some(GpsReset {
             t_us: m.t_us,
             block,

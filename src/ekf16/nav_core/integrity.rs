@@ -12,6 +12,14 @@
 //! horizontal and vertical levels by the position block's, the velocity and tilt levels by the
 //! velocity block's (a tilt error shows in the velocity innovations first).
 //!
+//! **The velocity innovations' mean.** An exponential mean `u` (the same weight per fix) of the
+//! fused GPS velocity innovations `z - h(x)` (NED, m/s; zero at the alignment and when the
+//! velocity block is reset). A velocity error the covariance does not hold (an unmodelled
+//! specific-force error: a tilt levelled on a wrong magnetic field) shows in every fix with
+//! the same sign; `|u|` is added to the velocity level. On a consistent filter `u` is the
+//! smoothed noise, about `sqrt(w / (2 - w))` = 0.23 of the innovations' standard deviation
+//! per axis.
+//!
 //! **The position-against-velocity check** ([`PvMonitor`]). A GPS position that moves without
 //! its velocity (a slow drift, multipath, a step the filter resets to) is followed by the filter
 //! with a consistent covariance: its innovations cannot show it. The GPS's own velocity can.
@@ -42,7 +50,7 @@ use crate::ekf16::state::{POS, QUAT, VEL};
 use crate::estimate::FusionRecord;
 use crate::integrity::{Integrity, ProtectionLevels};
 use crate::scalar::Scalar;
-use crate::scalar::{us_to_s, zeros_const};
+use crate::scalar::{all_finite_fixed, us_to_s, zeros_const};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 /// Standard deviation of the unknown acceleration over an IMU gap, per NED axis, m/s^2.
@@ -223,6 +231,17 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 self.gps_nis_mean[i] += (nis - self.gps_nis_mean[i]) * w;
             }
         }
+        if velocity.fused && all_finite_fixed(&velocity.innovation) {
+            let w = T::lit(NIS_MEAN_WEIGHT);
+            let mean = &mut self.gps_velocity_innovation_mean;
+            *mean += (velocity.innovation - *mean) * w;
+        }
+    }
+
+    /// The velocity error the GPS velocity innovations keep showing, m/s: the norm of their
+    /// exponential mean (module docs), what the velocity level is raised by.
+    pub(crate) fn velocity_innovation_bias(&self) -> T {
+        self.gps_velocity_innovation_mean.norm()
     }
 
     /// An IMU gap of `dt` s (at most [`GAP_MOTION_MAX_S`]) carried by the last known motion:
@@ -334,6 +353,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             ProtectionLevels::from_covariance(&q, &self.p, config.risk, &zero, &zero, delay_std_s)
                 .inflated(position, velocity)
                 .with_position_bias(self.pv.bias())
+                .with_velocity_bias(self.velocity_innovation_bias())
                 .with_heading_tilt_coupling(self.heading_tilt_coupling(), config.risk)
                 .with_magnetometer(self.mag_integrity());
         let r = self.refusals;

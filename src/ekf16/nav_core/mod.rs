@@ -497,6 +497,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     /// Per GPS block: exponential mean (weight `NIS_MEAN_WEIGHT`) of the NIS of every fix,
     /// each at most the block's gate (the integrity monitor, `integrity.rs`).
     gps_nis_mean: [T; 2],
+    /// Exponential mean (weight `NIS_MEAN_WEIGHT`) of the fused GPS velocity innovations,
+    /// NED m/s: the velocity error the fixes keep showing (`integrity.rs`).
+    gps_velocity_innovation_mean: Vector3<T>,
     /// The GPS position-against-velocity consistency check (`integrity.rs`).
     pv: integrity::PvMonitor<T>,
     /// The magnetometer's innovation and field-offset monitor (`mag_monitor.rs`).
@@ -569,6 +572,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gps_accepted_us: [None; 2],
             gps_nis: [(T::ZERO, 0); 2],
             gps_nis_mean: [T::ZERO; 2],
+            gps_velocity_innovation_mean: zeros_const(),
             pv: integrity::PvMonitor::EMPTY,
             mag_monitor: mag_monitor::MagMonitor::EMPTY,
             last_gps_reset: ZeroOption::None,
@@ -664,6 +668,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_accepted_us = [None; 2];
         self.gps_nis = [(T::zero(), 0); 2];
         self.gps_nis_mean = [T::lit(3.0); 2];
+        self.gps_velocity_innovation_mean = Vector3::zeros();
         self.pv = integrity::PvMonitor::EMPTY;
         self.mag_monitor = mag_monitor::MagMonitor::EMPTY;
         self.last_gps_reset = ZeroOption::None;
