@@ -10,8 +10,8 @@ use super::sigma::BiasWatch;
 use super::tracking::drop_inconsistent_axes;
 use super::{
     ACQUIRE_AGREEMENT_SIGMA, AXES, AxisUpdate, DelayLoop, DelayLoopConfig, DelayStatus,
-    DelayUpdate, GainFusion, HorizonFix, InnovationDelay, MAX_APPLIED_DELAY_ERROR_S, SensorDelays,
-    SlidingCorrelator,
+    DelayUpdate, GainFusion, HorizonFix, InnovationDelay, MAX_APPLIED_DELAY_ERROR_S,
+    SUSTAINED_MOTION_BUFFERS, SUSTAINED_MOTION_SHARE, SensorDelays, SlidingCorrelator,
 };
 use crate::error::{Bound, Capacity, Error, Section, check};
 use crate::scalar::Scalar;
@@ -65,6 +65,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         rate_interval_us: 0,
         rate_votes: 0,
         gps_rate_changes: 0,
+        moving_updates: [0; AXES],
         configured: false,
     };
 
@@ -128,6 +129,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.rate_interval_us = 0;
         self.rate_votes = 0;
         self.gps_rate_changes = 0;
+        self.moving_updates = [0; AXES];
         self.configured = true;
         Ok(())
     }
@@ -191,6 +193,23 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.locked = locked;
         self.restarts = restarts;
         self.gps_rate_changes = changes.saturating_add(1);
+    }
+
+    /// Counts the updates in a row `axis` moved at least [`SUSTAINED_MOTION_SHARE`] of the
+    /// motion threshold (its IMU acceleration variance over the buffer is `accel_variance`);
+    /// true once they span [`SUSTAINED_MOTION_BUFFERS`] buffer lengths at the configured update
+    /// interval (`fixes_per_update / gps_rate_hz`).
+    fn sustained_motion(&mut self, axis: usize, accel_variance: T) -> bool {
+        let threshold = T::lit(SUSTAINED_MOTION_SHARE) * self.config.min_accel_variance_m2_s4;
+        let count = &mut self.moving_updates[axis];
+        *count = if accel_variance >= threshold {
+            count.saturating_add(1)
+        } else {
+            0
+        };
+        let update_s = T::lit(f64::from(self.config.fixes_per_update)) / self.config.gps_rate_hz;
+        T::lit(f64::from(*count)) * update_s
+            >= T::lit(SUSTAINED_MOTION_BUFFERS) * self.config.buffer_s
     }
 
     /// The sizes of `config` against the capacities, each error on the
@@ -436,9 +455,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         for axis in 0..AXES {
             let p = &peaks[axis];
             z[axis] = p.shift_samples * self.period_s - offset_s;
-            valid[axis] = p.interior
-                && p.peak >= self.config.min_peak
-                && p.accel_variance >= self.config.min_accel_variance_m2_s4;
+            let moving = p.accel_variance >= self.config.min_accel_variance_m2_s4
+                || self.sustained_motion(axis, p.accel_variance);
+            valid[axis] = p.interior && p.peak >= self.config.min_peak && moving;
         }
         let buffer_s = self.config.buffer_s;
         let dt_s = self

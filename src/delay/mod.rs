@@ -32,7 +32,9 @@
 //!    (`matched` module).
 //! 3. Validity: `V_i = 1` when the peak is interior to the window, its value
 //!    is at least `min_peak`, and the axis' IMU acceleration variance over the
-//!    buffer is at least `min_accel_variance_m2_s4`: without motion the peak
+//!    buffer is at least `min_accel_variance_m2_s4` (or at least
+//!    [`SUSTAINED_MOTION_SHARE`] of it through the last
+//!    [`SUSTAINED_MOTION_BUFFERS`] buffers): without motion the peak
 //!    position says nothing about the delay.
 //!    A valid axis more than 3 standard deviations of their difference from
 //!    the best-measured axis of the same window is left out.
@@ -107,6 +109,18 @@
 /// factor 1.25 of the previous one, before the loop follows the new rate
 /// ([`DelayLoopConfig::follow_gps_rate`]).
 pub const GPS_RATE_VOTES: u8 = 3;
+
+/// An axis whose IMU acceleration variance over the buffer stays at least this share of
+/// [`DelayLoopConfig::min_accel_variance_m2_s4`] for [`SUSTAINED_MOTION_BUFFERS`] buffer
+/// lengths in a row is moving enough for `V_i` (docs/delay.md, section 3): a vehicle shuttling
+/// gently (a rover, a boat) carries the delay in its sustained motion, where a drone's window at
+/// the same variance is the onset or the end of a manoeuvre, whose peak the tilt error moves.
+pub const SUSTAINED_MOTION_SHARE: f64 = 0.5;
+
+/// Buffer lengths ([`DelayLoopConfig::buffer_s`]) an axis must keep moving at
+/// [`SUSTAINED_MOTION_SHARE`] of the motion threshold, updates in a row, before its weaker
+/// windows count: two, so that the window fused holds no onset of the motion.
+pub const SUSTAINED_MOTION_BUFFERS: f64 = 2.0;
 
 mod calibration;
 mod config;
@@ -245,6 +259,9 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     rate_votes: u8,
     /// Times the loop followed a new GPS rate.
     gps_rate_changes: u16,
+    /// Updates in a row each axis moved at least [`SUSTAINED_MOTION_SHARE`] of the motion
+    /// threshold (up to 255).
+    moving_updates: [u8; AXES],
     /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
     /// [`configure`](DelayLoop::configure): every sample is refused.
     configured: bool,
