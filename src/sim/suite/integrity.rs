@@ -35,7 +35,7 @@
 //! | `availability_clean` | share of the navigator's epochs after its first estimate with all six flags valid, clean | >= 0.95 |
 //! | `pl_tightness_tilt` | median tilt PL over the tilt RMSE (epochs with tilt valid), navigator, clean | 6 |
 //! | `ekf16_future_stamp`, `aekf17_future_stamp` | tilt RMSE from 10 s, stamped runs over clean runs (pooled) | 1.1 |
-//! | `ekf16_divergence_reported` | s from the first tilt error above 30 deg to a reported reset or an invalid tilt (largest over the runs; 0 when the error never exceeds 30 deg; infinite when never reported) | 5 |
+//! | `ekf16_divergence_reported` | s from the first tilt error above 30 deg to a reported reset or an invalid tilt (largest over the runs; 0 when the error never exceeds 30 deg, the details then give the largest tilt error; infinite when never reported) | 5 |
 //!
 //! **JSON** ([`IntegrityResult::to_json`]): `seeds`, `scenarios`, `duration_s`, `integrity`:
 //! per row `name`, `passed`, `measured` (`null` when not finite), `limit`; and `details`: per
@@ -324,6 +324,8 @@ pub struct RunStats {
     /// Sum of squared tilt errors (deg^2) from 10 s (scaled), and their count; an epoch
     /// without an estimate makes it NaN.
     pub tilt_from_10s_sq: (f64, u64),
+    /// Largest tilt error of the run, deg (NaN when an error was NaN).
+    pub largest_tilt_deg: f64,
     /// First time the tilt error exceeded [`DIVERGED_TILT_DEG`], s.
     pub diverged_at_s: Option<f64>,
     /// First time at or after it with a new reset or tilt not valid, s.
@@ -498,6 +500,7 @@ fn measure<N: Navigator<f64>>(
             s.tilt_from_10s_sq.0 += tilt * tilt;
             s.tilt_from_10s_sq.1 += 1;
         }
+        s.largest_tilt_deg = max_keeping_nan(s.largest_tilt_deg, tilt);
         if s.diverged_at_s.is_none() && tilt > DIVERGED_TILT_DEG {
             s.diverged_at_s = Some(t);
         }
@@ -979,13 +982,32 @@ fn rows(jobs: &[Job], outcomes: &[RunOutcome]) -> Vec<IntegrityRow> {
             Some(s.reported_at_s.map_or(f64::INFINITY, |r| r - at))
         })
         .fold(0.0, f64::max);
+    // What the runs' tilt reached: with no run above 30 deg the row measures nothing.
+    let largest = divergence
+        .iter()
+        .map(|s| s.largest_tilt_deg)
+        .fold(0.0, max_keeping_nan);
     rows.push(upper(
         "ekf16_divergence_reported".into(),
         latency,
         DIVERGENCE_LIMIT_S,
-        json!({ "runs": divergence.len(), "runs_never_above_30_deg": never }),
+        json!({
+            "runs": divergence.len(),
+            "runs_never_above_30_deg": never,
+            "largest_tilt_error_deg": json_number(largest),
+        }),
     ));
     rows
+}
+
+/// The larger of `a` and `b`, NaN when either is (`f64::max` skips a NaN: an error that was NaN
+/// must not read as small).
+fn max_keeping_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
 }
 
 impl IntegrityResult {
@@ -1067,6 +1089,17 @@ impl fmt::Display for IntegrityResult {
 mod tests {
     use super::*;
     use crate::Error;
+
+    /// A NaN tilt error keeps the run's largest error NaN, in either order: the divergence row
+    /// cannot report a small largest error for a run whose error was not a number.
+    #[test]
+    fn the_largest_error_keeps_a_nan() {
+        assert_eq!(max_keeping_nan(1.0, 2.0), 2.0);
+        assert!(max_keeping_nan(f64::NAN, 2.0).is_nan());
+        assert!(max_keeping_nan(3.0, f64::NAN).is_nan());
+        let errors = [1.0, f64::NAN, 0.5];
+        assert!(errors.into_iter().fold(0.0, max_keeping_nan).is_nan());
+    }
 
     /// The suite names exactly the rows of its contract, in order.
     #[test]
