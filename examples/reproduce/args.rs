@@ -91,6 +91,12 @@ pub struct Args {
     /// `--seed`; `--duration` scales its 60 s runs); writes `integrity` to the JSON file.
     #[arg(long)]
     pub integrity: bool,
+    /// Write every 50 ms of one integrity-suite run as CSV to --csv [default:
+    /// target/integrity-trace/RUN.csv]: the run named as the suite's progress names it, e.g.
+    /// "high seed 5 proposed reset_inflight", with `--seed`/`--seeds` as in the suite run it
+    /// comes from (the delay's start is calibrated on the first seed).
+    #[arg(long, value_name = "RUN")]
+    pub integrity_trace: Option<String>,
     /// Run the delay suite of issue 11 instead (`delaynav::sim::suite::delay`); writes
     /// `delay_scenarios` to the JSON file.
     #[arg(long)]

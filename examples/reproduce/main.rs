@@ -15,6 +15,8 @@
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
 //! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # delay suite
 //! cargo run --release --features sim --example reproduce -- --integrity --json target/integrity.json
+//! cargo run --release --features sim --example reproduce -- --seed 4 \
+//!     --integrity-trace "high seed 5 proposed reset_inflight"             # one run, every 50 ms
 //! cargo run --release --features sim --example reproduce -- --delay-suite --rows delay_ramp,gps_2hz \
 //!     --delay-rate-std 1 --delay-rate-time-constant 30 --json d.json      # rows with the drift-rate state
 //! cargo run --release --features sim --example reproduce -- --delay-trace cold_start_low --seed 1 \
@@ -101,6 +103,76 @@ impl Drop for Reporter {
 }
 
 /// Writes a suite's JSON document to `path` (its folder created).
+/// `--integrity-trace RUN`: one run of the integrity suite, every 50 ms, as CSV (errors against
+/// the truth beside the protection levels and flags, `integrity::EpochRecord`), and its
+/// misleading time on stderr.
+fn integrity_trace(args: &Args, run: &str, progress: ProgressFn) -> Result<(), Box<dyn Error>> {
+    use std::io::Write;
+    let seeds = args.seeds.unwrap_or(3);
+    let options = IntegrityOptions {
+        seeds: (args.seed..args.seed + seeds).collect(),
+        scale: args.duration.unwrap_or(60.0) / 60.0,
+        ..IntegrityOptions::default()
+    };
+    let epochs = integrity::trace(&options, run, progress)?;
+    let path = args.csv.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "target/integrity-trace/{}.csv",
+            run.replace(' ', "-")
+        ))
+    });
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)?;
+    }
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+    writeln!(
+        out,
+        "t_s,error_north_deg,error_east_deg,error_down_deg,tilt_deg,tilt_pl_deg,tilt_valid,\
+         heading_deg,heading_pl_deg,heading_valid,horizontal_m,horizontal_pl_m,horizontal_valid,\
+         velocity_m_s,velocity_pl_m_s,velocity_valid,resets"
+    )?;
+    let (mut rows, mut next_s) = (0usize, f64::NEG_INFINITY);
+    let mut misleading = [0.0f64; 4];
+    let mut previous: Option<&integrity::EpochRecord> = None;
+    for e in &epochs {
+        // An epoch's MI lasts until the next sample, as the suite charges it.
+        if let Some(p) = previous {
+            let dt = (e.t_s - p.t_s).max(0.0);
+            for (q, m) in misleading.iter_mut().enumerate() {
+                if p.valid[q] && p.errors[q] > p.levels[q] {
+                    *m += dt;
+                }
+            }
+        }
+        previous = Some(e);
+        // Every 50 ms of the truth's clock (a clock that steps back starts again).
+        if e.t_s < next_s - 0.05 || e.t_s >= next_s {
+            next_s = e.t_s + 0.05;
+            let [n, east, d] = e.attitude_error_ned_deg;
+            write!(out, "{:.4},{n:.4},{east:.4},{d:.4}", e.t_s)?;
+            for q in 0..4 {
+                write!(
+                    out,
+                    ",{:.4},{:.4},{}",
+                    e.errors[q],
+                    e.levels[q],
+                    u8::from(e.valid[q])
+                )?;
+            }
+            writeln!(out, ",{}", e.resets)?;
+            rows += 1;
+        }
+    }
+    out.flush()?;
+    eprintln!(
+        "{run}: valid with the error above its level (s, charged as the suite does): tilt {:.3}, \
+         heading {:.3}, horizontal {:.3}, velocity {:.3}",
+        misleading[0], misleading[1], misleading[2], misleading[3]
+    );
+    eprintln!("wrote {rows} rows to {}", path.display());
+    Ok(())
+}
+
 fn write_json(path: &Path, json: &Value) -> Result<(), Box<dyn Error>> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
@@ -145,6 +217,9 @@ fn main() -> Result<(), Box<dyn Error>> {
             enforce(&result.verdicts(), &args.known_failures)?;
         }
         return Ok(());
+    }
+    if let Some(run) = &args.integrity_trace {
+        return integrity_trace(&args, run, &progress);
     }
     if args.integrity {
         let seeds = args.seeds.unwrap_or(3);

@@ -55,7 +55,7 @@ use crate::sim::bound::{BoundConfig, trajectory_bound};
 use crate::sim::faults::{
     Fault, FaultySimulation, OnTimeBackwards, base_config_in, fault_suite_in, feed, inflight_config,
 };
-use crate::sim::{DelayProfile, Scenario, SimConfig, SimEvent, tilt_heading_error_rad};
+use crate::sim::{DelayProfile, Scenario, SimConfig, SimEvent, attitude_error_ned_rad};
 use crate::{AugmentedEkf17, AugmentedEkf17Config, Ekf16};
 use core::fmt;
 use serde_json::{Value, json};
@@ -397,6 +397,27 @@ fn bound_availability(
 
 /// Feeds `events` to `nav` and measures it (module docs).
 /// `alert_limits`: tilt, heading, horizontal, velocity, for the Stanford diagrams.
+/// One epoch (IMU sample) of a run as the suite measures it ([`trace`]): the errors against the
+/// truth beside the levels and flags the estimator gave. NaN errors and levels before the first
+/// estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpochRecord {
+    /// Truth time of the IMU sample, s.
+    pub t_s: f64,
+    /// The attitude error as a rotation vector in NED (estimate against truth), deg: its
+    /// north and east parts are the tilt, its down part the heading.
+    pub attitude_error_ned_deg: [f64; 3],
+    /// Errors: tilt, heading (deg), horizontal position (m), velocity (m/s).
+    pub errors: [f64; 4],
+    /// The protection levels of the same quantities.
+    pub levels: [f64; 4],
+    /// The flags of the same quantities (`tilt_valid`, `heading_valid`, `horizontal_valid`,
+    /// `velocity_valid`).
+    pub valid: [bool; 4],
+    /// Resets reported so far.
+    pub resets: u32,
+}
+
 fn measure<N: Navigator<f64>>(
     events: impl Iterator<Item = SimEvent>,
     mut nav: N,
@@ -404,6 +425,7 @@ fn measure<N: Navigator<f64>>(
     mut reset: impl FnMut(&mut N),
     skip_s: f64,
     alert_limits: [f64; 4],
+    on_epoch: &mut dyn FnMut(&EpochRecord),
 ) -> RunOutcome {
     let mut s = RunStats::default();
     let mut stanford: Vec<Stanford> = alert_limits.iter().map(|&al| Stanford::new(al)).collect();
@@ -435,6 +457,14 @@ fn measure<N: Navigator<f64>>(
         let estimate = nav.estimate();
         let integrity = nav.integrity();
         let Some(est) = estimate else {
+            on_epoch(&EpochRecord {
+                t_s: t,
+                attitude_error_ned_deg: [f64::NAN; 3],
+                errors: [f64::NAN; 4],
+                levels: [f64::NAN; 4],
+                valid: [false; 4],
+                resets: integrity.resets,
+            });
             if started {
                 s.epochs += 1;
             }
@@ -447,8 +477,8 @@ fn measure<N: Navigator<f64>>(
             s.first_estimate_s = Some(t);
         }
         started = true;
-        let (tilt, heading) = tilt_heading_error_rad(&est.attitude, &truth.attitude);
-        let (tilt, heading) = (tilt.to_degrees(), heading.to_degrees());
+        let phi = attitude_error_ned_rad(&est.attitude, &truth.attitude).map(f64::to_degrees);
+        let (tilt, heading) = (phi.x.hypot(phi.y), phi.z.abs());
         let d = est.position_ned_m - truth.position_m;
         let horizontal = d.x.hypot(d.y);
         let velocity = (est.velocity_ned_m_s - truth.velocity_m_s).norm();
@@ -459,6 +489,14 @@ fn measure<N: Navigator<f64>>(
             (integrity.horizontal_valid, horizontal, l.horizontal_m),
             (integrity.velocity_valid, velocity, l.velocity_m_s),
         ];
+        on_epoch(&EpochRecord {
+            t_s: t,
+            attitude_error_ned_deg: phi.into(),
+            errors: quantities.map(|q| q.1),
+            levels: quantities.map(|q| q.2),
+            valid: quantities.map(|q| q.0),
+            resets: integrity.resets,
+        });
         for (diagram, &(valid, error, level)) in stanford.iter_mut().zip(&quantities) {
             diagram.add(error, level, valid);
         }
@@ -655,7 +693,12 @@ fn jobs(options: &IntegrityOptions) -> Vec<Job> {
 
 impl Job {
     /// Runs the job with its estimator (`start`: the navigator's and `aekf17`'s delay).
-    fn run(&self, start: DelayStart, skip_s: f64) -> Result<RunOutcome, SuiteError> {
+    fn run(
+        &self,
+        start: DelayStart,
+        skip_s: f64,
+        on_epoch: &mut dyn FnMut(&EpochRecord),
+    ) -> Result<RunOutcome, SuiteError> {
         let events = FaultySimulation::new(self.sim.clone(), &self.faults)
             .map_err(|e| SuiteError::config(self.name(), e))?;
         let refused = |e| SuiteError::config(self.estimator.name(), e);
@@ -677,6 +720,7 @@ impl Job {
                         DelayCompensatedNav::reset,
                         skip_s,
                         limits,
+                        on_epoch,
                     ));
                 }
                 let events: Vec<SimEvent> = events.collect();
@@ -687,6 +731,7 @@ impl Job {
                     DelayCompensatedNav::reset,
                     skip_s,
                     limits,
+                    on_epoch,
                 );
                 let from_s = outcome.stats.first_estimate_s.unwrap_or(f64::INFINITY);
                 outcome.bound = Some(
@@ -697,7 +742,15 @@ impl Job {
             }
             Estimator::Ekf16 => {
                 let filter = Ekf16::new(ekf16_config::<f64>(&self.sim)).map_err(refused)?;
-                measure(events, filter, self.on_backwards, |_| {}, skip_s, limits)
+                measure(
+                    events,
+                    filter,
+                    self.on_backwards,
+                    |_| {},
+                    skip_s,
+                    limits,
+                    on_epoch,
+                )
             }
             Estimator::Aekf17 => {
                 let mut config = AugmentedEkf17Config::with_nav(ekf16_config::<f64>(&self.sim));
@@ -706,18 +759,26 @@ impl Job {
                     config.initial_delay_std_s = std;
                 }
                 let filter = AugmentedEkf17::new(config).map_err(refused)?;
-                measure(events, filter, self.on_backwards, |_| {}, skip_s, limits)
+                measure(
+                    events,
+                    filter,
+                    self.on_backwards,
+                    |_| {},
+                    skip_s,
+                    limits,
+                    on_epoch,
+                )
             }
         })
     }
 }
 
-/// Runs the suite, reporting [`Progress::Calibrated`] per scenario and a [`Progress::Step`]
-/// per run.
-pub fn run(
+/// The options checked, and the navigator's delay start per scenario: an offline calibration
+/// on the scenario's run with the first seed (reported as [`Progress::Calibrated`]).
+fn calibrated_starts(
     options: &IntegrityOptions,
     progress: ProgressFn,
-) -> Result<IntegrityResult, SuiteError> {
+) -> Result<Vec<(Scenario, DelayStart)>, SuiteError> {
     let scale = options.scale;
     if !(scale.is_finite() && scale > 0.0) {
         return Err(SuiteError::InvalidOption {
@@ -731,28 +792,95 @@ pub fn run(
             reason: "seeds and scenarios must not be empty".into(),
         });
     }
-    let t0 = Instant::now();
     let first_seed = options.seeds[0];
-    let starts: Vec<(Scenario, DelayStart)> =
-        parallel_map(&options.scenarios, options.threads, |_, &scenario| {
-            let base = base_config_in(scenario, first_seed, scale);
-            base.validate()
-                .map_err(|e| SuiteError::config("simulation", e))?;
-            let start =
-                calibrated_start(&base).map_err(|e| SuiteError::config("calibration", e))?;
-            progress(Progress::Calibrated {
-                delay_s: start.delay_s,
-            });
-            Ok((scenario, start))
-        })
-        .into_iter()
-        .collect::<Result<_, SuiteError>>()?;
-    let start_of = |scenario: Scenario| {
-        starts
-            .iter()
-            .find(|(s, _)| *s == scenario)
-            .map_or(super::setup::UNCALIBRATED_START, |(_, d)| *d)
+    parallel_map(&options.scenarios, options.threads, |_, &scenario| {
+        let base = base_config_in(scenario, first_seed, scale);
+        base.validate()
+            .map_err(|e| SuiteError::config("simulation", e))?;
+        let start = calibrated_start(&base).map_err(|e| SuiteError::config("calibration", e))?;
+        progress(Progress::Calibrated {
+            delay_s: start.delay_s,
+        });
+        Ok((scenario, start))
+    })
+    .into_iter()
+    .collect()
+}
+
+/// The start calibrated for `scenario` (the uncalibrated one when it has none).
+fn start_in(starts: &[(Scenario, DelayStart)], scenario: Scenario) -> DelayStart {
+    starts
+        .iter()
+        .find(|(s, _)| *s == scenario)
+        .map_or(super::setup::UNCALIBRATED_START, |(_, d)| *d)
+}
+
+/// Every epoch of one run of the suite, by its name as the progress reports it (`"high seed 5
+/// proposed reset_inflight"`: scenario, seed, estimator, then the fault, `clean`,
+/// `future_stamp` or `delay_0.5s`): the same run as in [`run`] with the same `options` (the
+/// delay's start is calibrated on the first of `options.seeds`, which must hold the run's
+/// seed). `--integrity-trace` of `examples/reproduce` writes it as CSV.
+pub fn trace(
+    options: &IntegrityOptions,
+    name: &str,
+    progress: ProgressFn,
+) -> Result<Vec<EpochRecord>, SuiteError> {
+    let refused = |why: &str| SuiteError::InvalidOption {
+        option: "trace",
+        reason: format!(
+            "({name:?}) {why}: a run is named as \"high seed {} proposed reset_inflight\" \
+             (scenario, seed among the options' seeds, estimator, then the fault, clean, \
+             future_stamp or delay_0.5s)",
+            options.seeds.first().copied().unwrap_or(1)
+        ),
     };
+    // The scenario and the seed first: the jobs of that pair only are built.
+    let words: Vec<&str> = name.split(' ').collect();
+    let (scenario, seed) = match words.as_slice() {
+        [scenario, "seed", seed, ..] => (
+            options.scenarios.iter().find(|s| s.name() == *scenario),
+            seed.parse::<u64>()
+                .ok()
+                .filter(|s| options.seeds.contains(s)),
+        ),
+        _ => (None, None),
+    };
+    let (Some(&scenario), Some(seed)) = (scenario, seed) else {
+        return Err(refused("names no scenario and seed of these options"));
+    };
+    let one = IntegrityOptions {
+        scenarios: vec![scenario],
+        seeds: vec![seed],
+        ..options.clone()
+    };
+    let jobs = jobs(&one);
+    let Some(job) = jobs.iter().find(|j| j.name() == name) else {
+        return Err(refused("names no run of these options"));
+    };
+    let options = &IntegrityOptions {
+        scenarios: vec![scenario],
+        ..options.clone()
+    };
+    let starts = calibrated_starts(options, progress)?;
+    let mut epochs = Vec::new();
+    job.run(
+        start_in(&starts, job.scenario),
+        10.0 * options.scale,
+        &mut |e| epochs.push(*e),
+    )?;
+    Ok(epochs)
+}
+
+/// Runs the suite, reporting [`Progress::Calibrated`] per scenario and a [`Progress::Step`]
+/// per run.
+pub fn run(
+    options: &IntegrityOptions,
+    progress: ProgressFn,
+) -> Result<IntegrityResult, SuiteError> {
+    let t0 = Instant::now();
+    let starts = calibrated_starts(options, progress)?;
+    let start_of = |scenario: Scenario| start_in(&starts, scenario);
+    let scale = options.scale;
     let mut jobs = jobs(options);
     if let Some(only) = &options.rows {
         jobs.retain(|j| only.iter().any(|row| j.feeds(row)));
@@ -761,7 +889,7 @@ pub fn run(
     let skip_s = 10.0 * scale;
     let outcomes: Vec<RunOutcome> = parallel_map(&jobs, options.threads, |_, job| {
         let t = Instant::now();
-        let outcome = job.run(start_of(job.scenario), skip_s)?;
+        let outcome = job.run(start_of(job.scenario), skip_s, &mut |_| {})?;
         steps.step(
             Task::Integrity { name: job.name() },
             t.elapsed().as_secs_f64(),
@@ -1221,6 +1349,7 @@ mod tests {
             }
         }
         let ekf = || Ekf16::new(ekf16_config::<f64>(&config)).unwrap();
+        let mut epochs = Vec::new();
         let liar = measure(
             events(),
             Liar(ekf(), true),
@@ -1228,6 +1357,7 @@ mod tests {
             |_| {},
             0.0,
             [5.0, 10.0, 10.0, 2.0],
+            &mut |e| epochs.push(*e),
         );
         let honest = measure(
             events(),
@@ -1236,8 +1366,19 @@ mod tests {
             |_| {},
             0.0,
             [5.0, 10.0, 10.0, 2.0],
+            &mut |_| {},
         );
         let s = liar.stats;
+        // The epochs the observer saw ([`trace`]) are the ones measured: each MI pair is a
+        // tilt valid beyond its level, and the tilt is the rotation vector's north-east part.
+        let mi = epochs
+            .iter()
+            .filter(|e| e.valid[0] && e.errors[0] > e.levels[0])
+            .count();
+        assert_eq!(mi as u64, s.mi_pairs);
+        let e = epochs.last().expect("epochs");
+        let [n, east, _] = e.attitude_error_ned_deg;
+        assert!((n.hypot(east) - e.errors[0]).abs() < 1e-9, "{e:?}");
         assert!(s.epochs > 1000 && s.valid_pairs == s.epochs, "{s:?}");
         assert_eq!(s.mi_pairs, s.valid_pairs);
         assert!(s.mi_s > 1.0 && (s.mi_s - s.mi_quantity_s[0]).abs() < 1e-12);
@@ -1299,6 +1440,29 @@ mod tests {
             };
             let refused = run(&options, &crate::sim::suite::no_progress);
             assert!(matches!(refused, Err(SuiteError::InvalidOption { .. })));
+        }
+    }
+
+    /// A trace of a run the options do not hold (another seed, no scenario) is refused with the
+    /// form of a name, before any run.
+    #[test]
+    fn a_trace_of_no_run_is_refused() {
+        let options = IntegrityOptions {
+            seeds: vec![1],
+            ..IntegrityOptions::default()
+        };
+        for name in [
+            "high seed 2 proposed reset_inflight",
+            "reset_inflight",
+            "mid seed 1 x",
+        ] {
+            match trace(&options, name, &crate::sim::suite::no_progress) {
+                Err(SuiteError::InvalidOption { option, reason }) => {
+                    assert_eq!(option, "trace");
+                    assert!(reason.contains("high seed 1 proposed"), "{reason}");
+                }
+                other => panic!("{name}: {other:?}"),
+            }
         }
     }
 }
