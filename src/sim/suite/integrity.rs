@@ -153,6 +153,26 @@ struct Job {
 }
 
 impl Job {
+    /// [`measure`] for a filter the run does not reset (`Ekf16`, `AugmentedEkf17`).
+    fn measure_filter<N: Navigator<f64>>(
+        &self,
+        events: impl Iterator<Item = SimEvent>,
+        filter: N,
+        skip_s: f64,
+        limits: [f64; 4],
+        on_epoch: &mut dyn FnMut(&EpochRecord),
+    ) -> RunOutcome {
+        measure(
+            events,
+            filter,
+            self.on_backwards,
+            |_| {},
+            skip_s,
+            limits,
+            on_epoch,
+        )
+    }
+
     /// Whether the row `row` needs this run.
     fn feeds(&self, row: &str) -> bool {
         match self.purpose {
@@ -742,15 +762,7 @@ impl Job {
             }
             Estimator::Ekf16 => {
                 let filter = Ekf16::new(ekf16_config::<f64>(&self.sim)).map_err(refused)?;
-                measure(
-                    events,
-                    filter,
-                    self.on_backwards,
-                    |_| {},
-                    skip_s,
-                    limits,
-                    on_epoch,
-                )
+                self.measure_filter(events, filter, skip_s, limits, on_epoch)
             }
             Estimator::Aekf17 => {
                 let mut config = AugmentedEkf17Config::with_nav(ekf16_config::<f64>(&self.sim));
@@ -759,15 +771,7 @@ impl Job {
                     config.initial_delay_std_s = std;
                 }
                 let filter = AugmentedEkf17::new(config).map_err(refused)?;
-                measure(
-                    events,
-                    filter,
-                    self.on_backwards,
-                    |_| {},
-                    skip_s,
-                    limits,
-                    on_epoch,
-                )
+                self.measure_filter(events, filter, skip_s, limits, on_epoch)
             }
         })
     }
