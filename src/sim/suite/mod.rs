@@ -117,7 +117,8 @@ pub enum Progress {
         /// The value.
         value: f64,
     },
-    /// The fault suite's offline delay calibration ended.
+    /// A suite's offline delay calibration ended (the fault suite's, or the integrity suite's per
+    /// scenario).
     Calibrated {
         /// The calibrated start, s.
         delay_s: f64,
@@ -165,7 +166,7 @@ impl fmt::Display for Task {
 }
 
 /// One line per event, as the `reproduce` example prints them (without its elapsed time):
-/// `[3/24] low seed 1 proposed: 1.2 s`, `gps_rate = 2`, `faults: calibrated start 0.201 s`, a
+/// `[3/24] low seed 1 proposed: 1.2 s`, `gps_rate = 2`, `calibrated start 0.201 s`, a
 /// delay suite row.
 impl fmt::Display for Progress {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -178,7 +179,7 @@ impl fmt::Display for Progress {
             } => write!(f, "[{done}/{total}] {task}: {seconds:.1} s"),
             Progress::SweepValue { parameter, value } => write!(f, "{parameter} = {value}"),
             Progress::Calibrated { delay_s } => {
-                write!(f, "faults: calibrated start {delay_s:.3} s")
+                write!(f, "calibrated start {delay_s:.3} s")
             }
             Progress::DelayRow(row) => write!(f, "{row}"),
         }
