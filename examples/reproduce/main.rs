@@ -102,7 +102,6 @@ impl Drop for Reporter {
     }
 }
 
-/// Writes a suite's JSON document to `path` (its folder created).
 /// `--integrity-trace RUN`: one run of the integrity suite, every 50 ms, as CSV (errors against
 /// the truth beside the protection levels and flags, `integrity::EpochRecord`), and its
 /// misleading time on stderr.
@@ -173,6 +172,7 @@ fn integrity_trace(args: &Args, run: &str, progress: ProgressFn) -> Result<(), B
     Ok(())
 }
 
+/// Writes a suite's JSON document to `path` (its folder created).
 fn write_json(path: &Path, json: &Value) -> Result<(), Box<dyn Error>> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;

@@ -198,7 +198,8 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// Counts the updates in a row `axis` moved at least [`SUSTAINED_MOTION_SHARE`] of the
     /// motion threshold (its IMU acceleration variance over the buffer is `accel_variance`);
     /// true once they span [`SUSTAINED_MOTION_BUFFERS`] buffer lengths at the configured update
-    /// interval (`fixes_per_update / gps_rate_hz`).
+    /// interval (`fixes_per_update / gps_rate_hz`). Called only for windows below the motion
+    /// threshold: a window at or above it (valid on its own) neither counts nor breaks the run.
     fn sustained_motion(&mut self, axis: usize, accel_variance: T) -> bool {
         let threshold = T::lit(SUSTAINED_MOTION_SHARE) * self.config.min_accel_variance_m2_s4;
         let count = &mut self.moving_updates[axis];

@@ -260,7 +260,7 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     /// Times the loop followed a new GPS rate.
     gps_rate_changes: u16,
     /// Updates in a row each axis moved at least [`SUSTAINED_MOTION_SHARE`] of the motion
-    /// threshold (up to 255).
+    /// threshold while below it (up to 255; updates above the threshold are not counted).
     moving_updates: [u8; AXES],
     /// False in [`BLANK`](DelayLoop::BLANK) and after a failed
     /// [`configure`](DelayLoop::configure): every sample is refused.

@@ -415,8 +415,6 @@ fn bound_availability(
     Ok(a)
 }
 
-/// Feeds `events` to `nav` and measures it (module docs).
-/// `alert_limits`: tilt, heading, horizontal, velocity, for the Stanford diagrams.
 /// One epoch (IMU sample) of a run as the suite measures it ([`trace`]): the errors against the
 /// truth beside the levels and flags the estimator gave. NaN errors and levels before the first
 /// estimate.
@@ -438,6 +436,8 @@ pub struct EpochRecord {
     pub resets: u32,
 }
 
+/// Feeds `events` to `nav` and measures it (module docs), handing every epoch to `on_epoch`.
+/// `alert_limits`: tilt, heading, horizontal, velocity, for the Stanford diagrams.
 fn measure<N: Navigator<f64>>(
     events: impl Iterator<Item = SimEvent>,
     mut nav: N,
