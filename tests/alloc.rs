@@ -69,13 +69,14 @@ fn run<T: Scalar, N: Navigator<T>>(mut ekf: N) {
     };
     // Warm-up: alignment and initialization are also allocation-free, but
     // the claim is about the steady per-sample path.
-    for k in 0..10 {
+    // 50 ms of samples (`align_min_duration_us`).
+    for k in 0..=50 {
         ekf.push_imu(&imu(k)).unwrap();
     }
-    assert_eq!(ekf.push_gps(&gps(9)).unwrap(), GpsOutcome::Initialized);
+    assert_eq!(ekf.push_gps(&gps(50)).unwrap(), GpsOutcome::Initialized);
     let mut fused = 0;
     let n = allocations_in(|| {
-        for k in 10..2010 {
+        for k in 51..2051 {
             ekf.push_imu(&imu(k)).unwrap();
             if k % 100 == 0 {
                 if let Ok(GpsOutcome::Fused { .. }) = ekf.push_gps(&gps(k)) {

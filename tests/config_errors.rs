@@ -71,14 +71,14 @@ fn messages<T: Scalar>() {
         "invalid configuration: `gps_vertical_std_m` = NaN, must be positive and finite"
     );
 
-    // A relation between fields carries the other field's value.
+    // An integer field's range.
     let c = Ekf16Config {
-        align_min_samples: 300,
+        align_min_duration_us: 60_000_001,
         ..Ekf16Config::<T>::default()
     };
     assert_eq!(
         c.validate().unwrap_err().to_string(),
-        "invalid configuration: `align_min_samples` = 300, must be <= 200"
+        "invalid configuration: `align_min_duration_us` = 60000001, must lie in [0, 60000000]"
     );
 
     let c = AugmentedEkf17Config {

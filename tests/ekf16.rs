@@ -246,10 +246,10 @@ macro_rules! ekf16_tests {
                 );
                 assert_eq!(
                     field_of(Ekf16Config {
-                        align_min_samples: 1000,
+                        align_min_duration_us: 60_000_001,
                         ..c
                     }),
-                    "align_min_samples"
+                    "align_min_duration_us"
                 );
                 let bad = Ekf16Config {
                     mag_inclination_rad: lit(1.6),
@@ -310,9 +310,9 @@ macro_rules! ekf16_tests {
                     .unwrap(),
                     MagOutcome::Stored
                 );
-                // 20 ms at rest at 1 kHz.
-                let align = |nav: &mut Ekf16<T>| {
-                    for k in 1..=20u64 {
+                // At rest at 1 kHz, a sample each ms of `ms`.
+                let align = |nav: &mut Ekf16<T>, ms: core::ops::RangeInclusive<u64>| {
+                    for k in ms {
                         let imu = Imu {
                             t_us: k * 1000,
                             gyro_rad_s: Vector3::zeros(),
@@ -321,10 +321,13 @@ macro_rules! ekf16_tests {
                         nav.push_imu(&imu).unwrap();
                     }
                 };
-                align(&mut ekf);
-                assert_eq!(ekf.push_gps(&fix(20_500)).unwrap(), GpsOutcome::Initialized);
+                // 49 ms of samples: short of `align_min_duration_us` (50 ms).
+                align(&mut ekf, 1..=50);
+                assert_eq!(ekf.push_gps(&fix(50_500)).unwrap(), GpsOutcome::Waiting);
+                align(&mut ekf, 51..=51);
+                assert_eq!(ekf.push_gps(&fix(51_500)).unwrap(), GpsOutcome::Initialized);
                 let e = ekf.estimate().unwrap();
-                assert_eq!(e.t_us, 20_000);
+                assert_eq!(e.t_us, 51_000);
                 let err = euler_error(&e, &tr);
                 assert!(err.amax() < 100.0 * $round, "attitude error {err}");
                 // Antenna at the fix: IMU at fix - R l.
@@ -338,8 +341,8 @@ macro_rules! ekf16_tests {
                 assert!(p.fixed_view::<4, 4>(QUAT, QUAT).trace() > lit(0.0));
                 // Without magnetometer: yaw 0, large yaw variance.
                 let mut blind = Ekf16::<T>::new(config()).unwrap();
-                align(&mut blind);
-                blind.push_gps(&fix(20_500)).unwrap();
+                align(&mut blind, 1..=51);
+                blind.push_gps(&fix(51_500)).unwrap();
                 let e2 = blind.estimate().unwrap();
                 assert!(e2.euler_rad().z.abs() < lit(1e-6));
                 let trace = |ekf: &Ekf16<T>| {

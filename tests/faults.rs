@@ -312,9 +312,11 @@ fn every_row_of_the_suite_passes_at_full_scale() {
         .collect();
     assert_eq!(failed, KNOWN_FAILURES, "rows failing: {results:?}");
     // The hard-iron row fails, but a field whose seen offset can turn the heading beyond its
-    // alert limit is not fused: 9.4 times the clean yaw RMSE when it was, 5.6 since.
+    // alert limit is not fused: 7.2 times the clean yaw RMSE, 10.9 with that field fused (9.4
+    // and 5.6 before the alignment's 50 ms minimum; seeds 1-5 now 7.2, 10.8, 4.7, 14.2, 14.3,
+    // before 5.6, 10.8, 4.5, 11.3, 14.3: the median 10.8 both).
     let hard_iron = &results[12];
-    assert!(hard_iron.measured < 7.0, "{hard_iron:?}");
+    assert!(hard_iron.measured < 8.0, "{hard_iron:?}");
     let mag = &results[10];
     assert!(
         mag.note

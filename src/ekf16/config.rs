@@ -25,6 +25,9 @@ use crate::scalar::{Scalar, zeros_const};
 use crate::sensors::Geodetic;
 use nalgebra::Vector3;
 
+/// Longest [`Ekf16Config::align_min_duration_us`], µs (60 s).
+const ALIGN_MAX_DURATION_US: u64 = 60_000_000;
+
 /// Standard gravity, m/s^2.
 pub const STANDARD_GRAVITY: f64 = 9.806_65;
 
@@ -194,8 +197,14 @@ pub struct Ekf16Config<T: Scalar> {
     /// IMU samples averaged for the initial roll and pitch (running mean
     /// up to this count, then exponential with weight `1 / align_window`).
     pub align_window: u32,
-    /// IMU samples needed before a GPS fix may initialize the filter.
-    pub align_min_samples: u32,
+    /// Time the accelerometer mean must cover before a GPS fix may
+    /// initialize the filter, µs (from the first IMU sample to the newest;
+    /// at most 60 s). Default 50 ms: a vibration line above 40 Hz is then
+    /// averaged over at least two periods, which leaves at most
+    /// `1 / (pi f T)` (a sixth) of its amplitude in the mean, where one
+    /// sample keeps all of it (2 m/s^2 across gravity tilts the level by 12 deg).
+    /// `0` initializes on the first fix after one sample.
+    pub align_min_duration_us: u32,
     /// Initial roll and pitch standard deviation, rad (in (0, pi]).
     pub initial_tilt_std_rad: T,
     /// Initial yaw standard deviation with a magnetometer heading, rad (in (0, pi]).
@@ -258,7 +267,7 @@ impl<T: Scalar> Ekf16Config<T> {
         max_gyro_rad_s: T::ZERO,
         max_accel_m_s2: T::ZERO,
         align_window: 0,
-        align_min_samples: 0,
+        align_min_duration_us: 0,
         initial_tilt_std_rad: T::ZERO,
         initial_yaw_std_rad: T::ZERO,
         initial_yaw_std_no_mag_rad: T::ZERO,
@@ -309,7 +318,7 @@ impl<T: Scalar> Default for Ekf16Config<T> {
             max_gyro_rad_s: T::lit(35.0),
             max_accel_m_s2: T::lit(400.0),
             align_window: 200,
-            align_min_samples: 1,
+            align_min_duration_us: 50_000,
             initial_tilt_std_rad: T::lit(0.1),
             initial_yaw_std_rad: T::lit(0.3),
             initial_yaw_std_no_mag_rad: T::lit(0.5),
@@ -480,14 +489,12 @@ impl<T: Scalar> Ekf16Config<T> {
             crate::ekf16::MAX_TIME_JUMP_US,
         )?;
         check::count_at_least("align_window", self.align_window.into(), 1)?;
-        check::count_at_least("align_min_samples", self.align_min_samples.into(), 1)?;
-        if self.align_min_samples > self.align_window {
-            return Err(Error::InvalidConfig {
-                field: "align_min_samples".into(),
-                value: Some(f64::from(self.align_min_samples)),
-                bound: Bound::AtMost(f64::from(self.align_window)),
-            });
-        }
+        check::count_within(
+            "align_min_duration_us",
+            self.align_min_duration_us.into(),
+            0,
+            ALIGN_MAX_DURATION_US,
+        )?;
         if let Some(o) = self.origin {
             check::within("origin.lat_deg", o.lat_deg, -90.0, 90.0)?;
             check::within("origin.lon_deg", o.lon_deg, -360.0, 360.0)?;

@@ -55,8 +55,9 @@
 //! Before the first GPS fix the filter only listens: it averages the
 //! accelerometer (running mean over up to `align_window` samples, then an
 //! exponential mean of the same length) and the direction of the
-//! magnetometer field the same way. The first fix after `align_min_samples`
-//! IMU samples sets
+//! magnetometer field the same way. The first fix once that mean covers
+//! `align_min_duration_us` (default 50 ms: a vibration line above 40 Hz
+//! averaged over two periods, where one sample would keep all of it) sets
 //!
 //! - roll and pitch from the mean specific force
 //!   ([`roll_pitch_from_accel`](crate::geo::roll_pitch_from_accel); valid when

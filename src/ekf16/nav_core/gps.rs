@@ -54,7 +54,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             self.frame = frame;
             return Ok(GpsStep::Measure(m));
         }
-        if self.last_imu.is_none() || self.accel_mean.count < self.config.align_min_samples {
+        if self.last_imu.is_none() || self.accel_mean_span_us < self.config.align_min_duration_us {
             self.gps_clock_us = Some(fix.t_us);
             return Ok(GpsStep::Waiting);
         }

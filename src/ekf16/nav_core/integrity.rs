@@ -25,18 +25,24 @@
 //! with a consistent covariance: its innovations cannot show it. The GPS's own velocity can.
 //! Per fix `k` (NED, m): a track integrates the fixes' velocities by the trapezoid,
 //! `r_k = r_{k-1} + (v_{k-1} + v_k) dt / 2`, and the raw inconsistency is `d_k = p_k - r_k`.
-//! Its smoothed value `o <- o + a (d_k - o)` ([`PV_SMOOTHING`] per fix whose position block was
-//! fused; a rejected position block teaches nothing; the fix a position block is reset to sets
-//! `o = d_k` at once) is the **offset**. While the offset is within its tolerance the track
+//! The track is anchored at the mean of its first [`PV_ANCHOR_FIXES`] fused fixes
+//! (`r += (d_k - o) / (n + 1)` at the `n`-th after the anchor fix; nothing is tested
+//! meanwhile): anchored at one fix, that fix's noise stayed in every later `d_k`, and a fix
+//! 2.5 sigma off held the offset beyond its tolerance for the whole run
+//! (`an_anchor_fix_off_by_its_noise_is_averaged_out`).
+//! From then, the smoothed `o <- o + a (d_k - o)` ([`PV_SMOOTHING`] per fix whose position block
+//! was fused; a rejected position block teaches nothing; the fix a position block is reset to
+//! sets `o = d_k` at once) is the **offset**. While the offset is within its tolerance the track
 //! learns it (`r += b o`, `o -= b o`, `b = max(1 / n, PV_BASELINE_RATE)` at the `n`-th fused
-//! fix after the anchor: a running mean, then slow, [`PV_BASELINE_RATE`]; the anchor's noise
-//! and the integration's own random walk are absorbed, a drift barely); beyond it the track is held
+//! fix after the anchor, slowing to [`PV_BASELINE_RATE`]; the integration's own random walk is
+//! absorbed, a drift barely); beyond it the track is held
 //! and the fix is counted (`FilterRefusals::gps_position_inconsistent`), so a lasting offset
 //! stays until the fixes come back to the track (or `reset()`). The tolerance is the 2-D level
 //! (`k2` at the integrity risk) of the offset's standard deviation without a fault,
-//! `s_o^2 = s_p^2 a / (2 - a) + s_v^2 dt^2 / b` (the smoothed white position noise `s_p`, the
-//! velocity noise `s_v` integrated over the `1 / b` fixes the track learns over), `s_p`, `s_v`
-//! the fix's noise (horizontal for the horizontal test, vertical with `k1` for the down axis).
+//! `s_o^2 = s_p^2 (a / (2 - a) + 1 / N_a) + s_v^2 dt^2 / b` (the smoothed white position noise
+//! `s_p`, the anchor's mean of `N_a` fixes, the velocity noise `s_v` integrated over the `1 / b`
+//! fixes the track learns over), `s_p`, `s_v` the fix's noise (horizontal for the horizontal
+//! test, vertical with `k1` for the down axis).
 //! The horizontal level is raised by the horizontal norm of the offset, the vertical one by its
 //! down component: the part of the error the fixes themselves disagree about.
 //! A gap of more than [`PV_MAX_GAP_US`] between fixes re-anchors the track at the fix (the
@@ -113,6 +119,9 @@ pub const PV_BASELINE_RATE: f64 = 1.0 / 300.0;
 pub const PV_MAX_GAP_US: u64 = 1_000_000;
 /// Fused position blocks after which the track's anchor counts as confirmed.
 pub const PV_CONFIRM_FIXES: u16 = 50;
+/// Fixes whose mean anchors the track (the anchor fix and the next fused ones; `1 /
+/// PV_SMOOTHING`, 2 s at 10 Hz): nothing is tested before.
+pub const PV_ANCHOR_FIXES: u16 = 20;
 
 /// The GPS position-against-velocity consistency check (module docs). All zero: not anchored.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,18 +198,26 @@ impl<T: Scalar> PvMonitor<T> {
             }
             self.offset = d;
         } else if position_fused {
-            self.offset += (d - self.offset) * T::lit(PV_SMOOTHING);
             self.confirmed = self.confirmed.saturating_add(1);
+            if self.confirmed < PV_ANCHOR_FIXES {
+                // The anchor as the running mean of the fixes against the integrated velocity
+                // (the offset found before a re-anchoring kept): one fix's noise alone is
+                // beyond the smoothed offset's tolerance.
+                let fixes = T::lit(f64::from(self.confirmed) + 1.0);
+                self.track += (d - self.offset) / fixes;
+                return false;
+            }
+            self.offset += (d - self.offset) * T::lit(PV_SMOOTHING);
         } else {
             return false;
         }
         let (k1, k2, _) = crate::integrity::protection_factors(risk);
         let a = T::lit(PV_SMOOTHING);
         let b = T::lit(PV_BASELINE_RATE).max(T::one() / T::lit(f64::from(self.confirmed.max(1))));
-        let smoothing = a / (T::lit(2.0) - a);
+        let noise = a / (T::lit(2.0) - a) + T::one() / T::lit(f64::from(PV_ANCHOR_FIXES));
         let walk = m.velocity_noise[(0, 0)] * dt * dt / b;
-        let horizontal = k2 * (m.position_noise[(0, 0)] * smoothing + walk).sqrt();
-        let vertical = k1 * (m.position_noise[(2, 2)] * smoothing + walk).sqrt();
+        let horizontal = k2 * (m.position_noise[(0, 0)] * noise + walk).sqrt();
+        let vertical = k1 * (m.position_noise[(2, 2)] * noise + walk).sqrt();
         let (h, v) = self.bias();
         let consistent = h <= horizontal && v <= vertical;
         if consistent {
@@ -468,7 +485,25 @@ mod tests {
         assert!((m.bias().0 - before).abs().as_f64() < 1.0, "{:?}", m.bias());
     }
 
+    fn an_anchor_fix_off_by_its_noise_is_averaged_out<T: Scalar>() {
+        // The first fix 5 m north of the track (2.5 sigma of its 2 m noise), the rest on it:
+        // the track is anchored at the first fixes' mean, and nothing is flagged. Anchored at
+        // the first fix alone, 582 of the 600 fixes were flagged from 1.8 s on, and the
+        // offset stayed at 3.3 m in the level.
+        let mut m = PvMonitor::<T>::EMPTY;
+        let flagged = feed(
+            &mut m,
+            0.0,
+            60.0,
+            |t| if t == 0.0 { 5.0 } else { 0.0 },
+            |_| true,
+        );
+        assert_eq!(flagged, 0);
+        assert!(m.bias().0.as_f64() < 0.5, "{:?}", m.bias());
+    }
+
     tests_in_both_precisions!(
+        an_anchor_fix_off_by_its_noise_is_averaged_out,
         a_consistent_track_leaves_the_levels_alone,
         a_drift_and_a_step_show_in_the_offset,
         a_reset_from_an_unconfirmed_anchor_anchors_again,

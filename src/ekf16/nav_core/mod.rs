@@ -467,6 +467,9 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     gps_clock_us: Option<u64>,
     mag_clock_us: Option<u64>,
     accel_mean: BoundedMean<T>,
+    /// Time from the first sample of `accel_mean` to the newest, µs
+    /// (saturating): what `align_min_duration_us` is compared with.
+    accel_mean_span_us: u32,
     mag_mean: BoundedMean<T>,
     frame: Option<LocalFrame>,
     /// The last GPS fusion records (position, velocity), if `gps_recorded`.
@@ -560,6 +563,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             gps_clock_us: None,
             mag_clock_us: None,
             accel_mean: BoundedMean::EMPTY,
+            accel_mean_span_us: 0,
             mag_mean: BoundedMean::EMPTY,
             frame: None,
             last_gps: (zero_record(), zero_record()),
@@ -658,6 +662,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         self.gps_clock_us = None;
         self.mag_clock_us = None;
         self.accel_mean = BoundedMean::EMPTY;
+        self.accel_mean_span_us = 0;
         self.mag_mean = BoundedMean::EMPTY;
         self.frame = config.origin.map(LocalFrame::new);
         self.gps_recorded = false;

@@ -11,8 +11,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         out
     }
 
-    pub(super) fn accumulate_accel(&mut self, accel: &Vector3<T>) {
+    /// Adds a sample `dt_us` after the previous one (0 for the first) to the
+    /// alignment's accelerometer mean.
+    pub(super) fn accumulate_accel(&mut self, accel: &Vector3<T>, dt_us: u64) {
         self.accel_mean.push(accel, self.config.align_window);
+        let dt_us = u32::try_from(dt_us).unwrap_or(u32::MAX);
+        self.accel_mean_span_us = self.accel_mean_span_us.saturating_add(dt_us);
     }
 
     /// Feeds one IMU sample (see the module docs).
@@ -46,7 +50,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let Some(clock) = self.imu_clock_us else {
             self.imu_clock_us = Some(s.t_us);
             self.last_imu = Some(s);
-            self.accumulate_accel(&s.accel_m_s2);
+            self.accumulate_accel(&s.accel_m_s2, 0);
             return Ok(());
         };
         if s.t_us > clock.saturating_add(MAX_TIME_JUMP_US) {
@@ -147,7 +151,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if !self.initialized {
             self.imu_clock_us = Some(s.t_us);
             self.last_imu = Some(s);
-            self.accumulate_accel(&s.accel_m_s2);
+            self.accumulate_accel(&s.accel_m_s2, dt_us);
             return Ok(());
         }
         self.predict(s, dt_us, gyro, accel, accel)
@@ -191,7 +195,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 self.x = x;
             }
         } else {
-            self.accumulate_accel(&s.accel_m_s2);
+            self.accumulate_accel(&s.accel_m_s2, dt_us);
         }
         self.imu_clock_us = Some(s.t_us);
         self.last_imu = Some(s);
