@@ -8,21 +8,42 @@ use delaynav::sim::{
     Fault, FaultySimulation, Scenario, SimConfig, SimEvent, tilt_heading_error_rad,
 };
 
-/// Runs `sim` without magnetometer from `start_s`; the heading error (deg) every second and
-/// the navigator at the end.
-fn run(sim: SimConfig, start_s: f64) -> (Vec<(f64, f64)>, DelayCompensatedNav<f64>) {
+/// One second of a run: time, heading and tilt errors (deg).
+struct Second {
+    t_s: f64,
+    heading_deg: f64,
+    tilt_deg: f64,
+}
+
+/// Runs `sim` without magnetometer from `start_s`: the errors every second, the time (s) the
+/// tilt was valid with its error above its protection level (checked every 10 ms), and the
+/// navigator at the end.
+fn run(sim: SimConfig, start_s: f64) -> (Vec<Second>, f64, DelayCompensatedNav<f64>) {
     let mut nav = proposed(&sim, UNCALIBRATED_START, None).unwrap();
     let events = FaultySimulation::new(sim, &[Fault::StartAt { t_s: start_s }]).unwrap();
     let mut errors = Vec::new();
+    let mut misleading_tilt_s = 0.0;
     for event in events {
         match &event {
             SimEvent::Imu { sample, truth } => {
                 let _ = nav.push_imu(sample);
-                if truth.t_us % 1_000_000 == 0
-                    && let Some(est) = nav.estimate()
-                {
-                    let (_, heading) = tilt_heading_error_rad(&est.attitude, &truth.attitude);
-                    errors.push((truth.t_us as f64 * 1e-6, heading.to_degrees()));
+                if truth.t_us % 10_000 != 0 {
+                    continue;
+                }
+                let Some((est, health)) = nav.estimate_with_health() else {
+                    continue;
+                };
+                let (tilt, heading) = tilt_heading_error_rad(&est.attitude, &truth.attitude);
+                let tilt_deg = tilt.to_degrees();
+                if health.tilt_valid && tilt_deg > health.protection_levels.tilt_deg {
+                    misleading_tilt_s += 0.01;
+                }
+                if truth.t_us % 1_000_000 == 0 {
+                    errors.push(Second {
+                        t_s: truth.t_us as f64 * 1e-6,
+                        heading_deg: heading.to_degrees(),
+                        tilt_deg,
+                    });
                 }
             }
             SimEvent::Gps { fix, .. } => {
@@ -31,7 +52,17 @@ fn run(sim: SimConfig, start_s: f64) -> (Vec<(f64, f64)>, DelayCompensatedNav<f6
             SimEvent::Mag(_) => unreachable!("no magnetometer"),
         }
     }
-    (errors, nav)
+    (errors, misleading_tilt_s, nav)
+}
+
+/// RMS of `f` over the seconds in `[from_s, to_s]`.
+fn rms(errors: &[Second], from_s: f64, to_s: f64, f: impl Fn(&Second) -> f64) -> f64 {
+    let picked: Vec<f64> = errors
+        .iter()
+        .filter(|e| e.t_s >= from_s && e.t_s <= to_s)
+        .map(|e| f(e).powi(2))
+        .collect();
+    (picked.iter().sum::<f64>() / picked.len() as f64).sqrt()
 }
 
 fn no_mag(scenario: Scenario, seed: u64, duration_s: f64) -> SimConfig {
@@ -46,32 +77,25 @@ fn no_mag(scenario: Scenario, seed: u64, duration_s: f64) -> SimConfig {
 /// Switched on in flight at 20 s without a magnetometer, the trajectory turned by 150 deg: the
 /// horizon filter aligns its yaw at 0 (0.5 rad of standard deviation), 150 deg off, and does
 /// not find the heading by itself (without the bank's resets 54 deg off at 48 s, 82 deg RMS
-/// of the 3-s samples over 24-48 s). The bank converges and its resets bring the heading
-/// within 12 deg RMS over 25-50 s, each counted and recorded: 5.4 deg measured while the
-/// alignment levelled on one IMU sample, 11.1 since it averages 50 ms (the heading 24 deg off
-/// at 25 s, 17 at 27 s). The seed is not typical: seeds 1 and 3 give
-/// 91 and 9.9 deg; in-flight starts without a
-/// magnetometer are an open weakness of the bank (CHANGELOG).
+/// of the 3-s samples over 24-48 s). Through the wrong heading it fits the GPS velocity with
+/// 2-5 m/s^2 of accelerometer bias and 20-25 deg of tilt; the bank's resets then reopen both.
+/// Measured: heading RMS over 25-50 s 2.9 deg, tilt RMS over 30-50 s 2.1 deg, no misleading
+/// tilt. While the resets turned the heading alone: 11.1 and 23.3 deg, and the tilt valid with
+/// its error above its level for 8.7 s (from 42 s). Seeds 1 and 4 of the same start do not converge
+/// within the run (their first resets take a wrong member of the bank): docs/nav.md.
 #[test]
 fn the_yaw_estimator_aligns_the_heading_in_flight_without_a_magnetometer() {
     let mut sim = no_mag(Scenario::Low, 2, 50.0);
     sim.trajectory.yaw_offset_rad = 2.6;
-    let (errors, nav) = run(sim, 20.0);
-    let at = |t: f64| {
-        errors
-            .iter()
-            .find(|(s, _)| *s >= t)
-            .map(|(_, e)| e.abs())
-            .unwrap()
-    };
-    assert!(at(21.0) > 150.0, "{errors:?}");
-    let after: Vec<f64> = errors
-        .iter()
-        .filter(|(t, _)| *t >= 25.0)
-        .map(|(_, e)| e * e)
-        .collect();
-    let rms = (after.iter().sum::<f64>() / after.len() as f64).sqrt();
-    assert!(rms < 12.0, "{rms} {errors:?}");
+    let (errors, misleading_tilt_s, nav) = run(sim, 20.0);
+    let first = errors.iter().find(|e| e.t_s >= 21.0).unwrap();
+    assert!(first.heading_deg.abs() > 150.0, "{}", first.heading_deg);
+    let heading = rms(&errors, 25.0, 50.0, |e| e.heading_deg);
+    let tilt = rms(&errors, 30.0, 50.0, |e| e.tilt_deg);
+    eprintln!("heading {heading:.2} tilt {tilt:.2} misleading {misleading_tilt_s:.2}");
+    assert!(heading < 8.0, "{heading}");
+    assert!(tilt < 5.0, "{tilt}");
+    assert_eq!(misleading_tilt_s, 0.0);
     let health = nav.health();
     assert!(
         health.yaw_gsf.converged && health.yaw_gsf.yaw_resets >= 1,
@@ -111,4 +135,43 @@ fn with_a_magnetometer_the_yaw_estimator_resets_nothing() {
     assert!(health.yaw_gsf.yaw_rad.is_none(), "{health:?}");
     assert_eq!(health.yaw_gsf.yaw_resets, 0);
     assert_eq!(health.last_reset, None);
+}
+
+/// The in-flight starts of docs/nav.md ("Yaw without a magnetometer", figures): `low` and
+/// `high`, seeds 1-2, switched on at 20 s with the trajectory turned by 150 deg and at 33 s
+/// turned by -115 deg. Printed per run: the heading error 30 s after the start, the tilt RMS
+/// over the run's last 20 s, the time the tilt was valid beyond its level. Asserted: the median
+/// heading error 30 s after the start is within 10 deg (4.8 measured; 27 while a reset turned
+/// the heading alone) and the eight runs' misleading tilt stays below 40 s (34.9 s; 55.1 s
+/// then). It is not 0: the tilt level after a start this far off is an open weakness.
+#[test]
+fn in_flight_starts_far_from_the_guess() {
+    let mut misleading = Vec::new();
+    let mut headings = Vec::new();
+    for (scenario, name) in [(Scenario::Low, "low"), (Scenario::High, "high")] {
+        for seed in [1, 2] {
+            for (start_s, turn_rad) in [(20.0, 2.6), (33.0, -2.0)] {
+                let mut sim = no_mag(scenario, seed, start_s + 40.0);
+                sim.trajectory.yaw_offset_rad = turn_rad;
+                let (errors, misleading_tilt_s, nav) = run(sim, start_s);
+                let later = errors.iter().find(|e| e.t_s >= start_s + 30.0).unwrap();
+                let tilt = rms(&errors, start_s + 20.0, start_s + 40.0, |e| e.tilt_deg);
+                eprintln!(
+                    "{name} seed {seed} start {start_s} turn {:.0} deg: heading {:.1} deg at +30 s, \
+                     tilt RMS {tilt:.1} deg over the last 20 s, misleading tilt {misleading_tilt_s:.2} s, \
+                     resets {}",
+                    turn_rad.to_degrees(),
+                    later.heading_deg.abs(),
+                    nav.health().yaw_gsf.yaw_resets
+                );
+                misleading.push(misleading_tilt_s);
+                headings.push(later.heading_deg.abs());
+            }
+        }
+    }
+    headings.sort_by(f64::total_cmp);
+    let median = (headings[3] + headings[4]) / 2.0;
+    assert!(median < 10.0, "{headings:?}");
+    let total: f64 = misleading.iter().sum();
+    assert!(total < 40.0, "{misleading:?}");
 }

@@ -270,8 +270,11 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     }
 
     /// Turns the horizon filter's attitude by `diff_rad` about down and
-    /// sets its heading variance to `var_rad2` (tilt variance kept, the
-    /// attitude's cross-covariances cleared).
+    /// sets its heading variance to `var_rad2`. The tilt and the
+    /// accelerometer bias were fitted to the GPS velocity through the wrong
+    /// heading, so they are reopened: the tilt standard deviation raised to
+    /// at least [`MOVING_TILT_STD_RAD`], the accelerometer bias set back to
+    /// its configured start and variance (cross-covariances of both cleared).
     #[inline(never)]
     fn reset_yaw(&mut self, diff_rad: T, var_rad2: T) {
         let (Some(mut x), Some(t_us)) = (self.ekf.nav_state(), self.ekf.time_us()) else {
@@ -280,13 +283,23 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let mut p = *self.ekf.covariance();
         let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), diff_rad);
         x.attitude = turn * x.attitude;
-        for i in QUAT..QUAT + 4 {
+        let c = &self.config.ekf;
+        x.accel_bias_m_s2 = c.initial_accel_bias_m_s2;
+        for i in (QUAT..QUAT + 4).chain(ACCEL_BIAS..ACCEL_BIAS + 3) {
             for j in 0..16 {
                 p[(i, j)] = T::zero();
                 p[(j, i)] = T::zero();
             }
         }
-        let tilt = self.ekf.tilt_std();
+        let bias_var = c.initial_accel_bias_std_m_s2 * c.initial_accel_bias_std_m_s2;
+        for i in ACCEL_BIAS..ACCEL_BIAS + 3 {
+            p[(i, i)] = bias_var;
+        }
+        let tilt = self
+            .ekf
+            .tilt_std()
+            .max(T::lit(MOVING_TILT_STD_RAD))
+            .max(c.initial_tilt_std_rad);
         p.fixed_view_mut::<4, 4>(QUAT, QUAT)
             .copy_from(&attitude_covariance(
                 &x.attitude,
