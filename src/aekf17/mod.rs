@@ -147,6 +147,7 @@ use crate::ekf16::{FilterRefusals, NavState};
 use crate::error::Error;
 use crate::estimate::{Estimate, FusionRecord, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::{LocalFrame, rotation_matrix};
+use crate::kalman::GainRestriction;
 use crate::scalar::{Scalar, us_to_s};
 use crate::sensors::{GpsFix, ImuSample, MagSample};
 use measurement::{AUGMENTED_STATES, AugmentedCovariance, AugmentedStateVector, DELAY};
@@ -498,7 +499,7 @@ impl<T: Scalar> Navigator<T> for AugmentedEkf17<T> {
         let outcome = self.core.push_gps(
             gps,
             |core, block, m| delayed_gps_model(core, config, smoothed, block, m),
-            restriction.as_ref(),
+            restriction.as_ref().map(GainRestriction::Matrix),
             // Keep tau in [0, max_delay_s], P untouched (see the module docs).
             |core| {
                 if core.clamp_extra_state(DELAY, T::zero(), config.max_delay_s) {

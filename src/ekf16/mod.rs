@@ -528,12 +528,14 @@ impl<T: Scalar> Ekf16<T> {
     /// the position noise gains `timing_variance_s2 v v'` and the velocity
     /// noise `timing_variance_s2 a a'` (the cross term between the blocks,
     /// fused one after the other, is left out). The navigator's delay
-    /// uncertainty, `docs/nav.md`.
+    /// uncertainty, `docs/nav.md`. With `gain_restriction` the gain is
+    /// `C K` (a consider update, [`crate::kalman::joseph_update_restricted`]).
     pub(crate) fn push_gps_with_timing_noise<G: GpsFix<T> + ?Sized>(
         &mut self,
         gps: &G,
         timing_variance_s2: T,
         accel_ned_m_s2: &Vector3<T>,
+        gain_restriction: Option<crate::kalman::GainRestriction<'_, T, NAV_STATES>>,
     ) -> Result<GpsOutcome<T>, Error> {
         self.core.push_gps(
             gps,
@@ -564,7 +566,7 @@ impl<T: Scalar> Ekf16<T> {
                     }
                 }
             },
-            None,
+            gain_restriction,
             |_| {},
         )
     }
@@ -614,7 +616,7 @@ impl<T: Scalar> Navigator<T> for Ekf16<T> {
     /// Fuses position then velocity with the lever-arm models of
     /// [`internals::measurement`](crate::internals::measurement), each block gated on its own.
     fn push_gps<G: GpsFix<T> + ?Sized>(&mut self, gps: &G) -> Result<GpsOutcome<T>, Error> {
-        self.push_gps_with_timing_noise(gps, T::zero(), &Vector3::zeros())
+        self.push_gps_with_timing_noise(gps, T::zero(), &Vector3::zeros(), None)
     }
 
     fn push_mag<M: MagSample<T> + ?Sized>(&mut self, mag: &M) -> Result<MagOutcome<T>, Error> {
@@ -687,7 +689,7 @@ mod tests {
             other => panic!("not fused: {other:?}"),
         };
         let off = records(plain.push_gps(&fix));
-        let on = records(widened.push_gps_with_timing_noise(&fix, variance, &accel));
+        let on = records(widened.push_gps_with_timing_noise(&fix, variance, &accel, None));
         for i in 0..3 {
             let tolerance = 1e3 * T::EPS.as_f64();
             let position = on.0.innovation_variance[i] - off.0.innovation_variance[i];

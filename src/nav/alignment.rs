@@ -5,8 +5,8 @@ use super::health::HEADING_STALE_US;
 use super::health::{AlignmentState, ResetCause, ResetRecord};
 use super::timeline::StreamClock;
 use super::{
-    DelayCompensatedNav, GSF_DISAGREEMENT_FIXES, GSF_DISAGREEMENT_RAD, GSF_PREDICT_PERIOD_US,
-    MOVING_SPEED_M_S, MOVING_TILT_STD_RAD,
+    DELAY_KNOWN_STD_S, DelayCompensatedNav, GSF_DISAGREEMENT_FIXES, GSF_DISAGREEMENT_RAD,
+    GSF_PREDICT_PERIOD_US, HEADING_UNKNOWN_STD_RAD, MOVING_SPEED_M_S, MOVING_TILT_STD_RAD,
 };
 use crate::ekf16::NavState;
 use crate::ekf16::measurement::yaw_direction;
@@ -71,6 +71,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.last_fix_velocity = None;
         self.valid_delay_updates = 0;
         self.mag_at_horizon = false;
+        self.aligned_moving = false;
+        self.heading_checked = false;
         self.geodetic_fixes = ZeroOption::None;
         self.present_accel = Vector3::zeros();
         self.imu_gap_end_us = 0;
@@ -102,6 +104,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// over. The EKF is rebuilt from its own state (same time and origin).
     pub(super) fn refine_alignment(&mut self, speed_m_s: T) {
         let moving = speed_m_s > T::lit(MOVING_SPEED_M_S);
+        self.aligned_moving = moving;
+        self.heading_checked = false;
         let retained = self.retained_biases.take();
         if !moving && retained.is_none() {
             return;
@@ -200,6 +204,47 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         }
     }
 
+    /// The horizon filter's heading variance, rad^2, from its quaternion
+    /// covariance (`dpsi/dq = 4 dq/dpsi` for a unit `q`).
+    fn horizon_heading_var(&self) -> T {
+        let x = self.ekf.state_vector();
+        let q = Quaternion::new(x[QUAT], x[QUAT + 1], x[QUAT + 2], x[QUAT + 3]);
+        let d = yaw_direction(&q) * T::lit(4.0);
+        let p = self.ekf.covariance().fixed_view::<4, 4>(QUAT, QUAT);
+        (d.transpose() * p * d)[0].max(T::zero())
+    }
+
+    /// The horizon filter, aligned in motion, does not know its heading:
+    /// the yaw estimator has not converged since, no magnetometer update is
+    /// recent ([`HEADING_STALE_US`]) and its heading standard deviation is
+    /// above [`HEADING_UNKNOWN_STD_RAD`]. A start at rest is left out: its
+    /// fixes carry little acceleration to turn the wrong way, and keeping
+    /// them off the tilt until the heading is known cost `mag_late` (a
+    /// magnetometer from 5 s) a third more yaw error.
+    pub(super) fn heading_unknown(&self) -> bool {
+        let std = T::lit(HEADING_UNKNOWN_STD_RAD);
+        self.ekf
+            .time_us()
+            .filter(|_| self.aligned_moving && !self.heading_checked && self.ekf.is_initialized())
+            .is_some_and(|t| !self.mag_recent(t) && self.horizon_heading_var() > std * std)
+    }
+
+    /// After an alignment made in motion without a recent magnetometer
+    /// update, the fixes are kept off the attitude and the biases while the
+    /// heading is unknown ([`heading_unknown`](Self::heading_unknown)) or
+    /// the delay loop's standard deviation is above [`DELAY_KNOWN_STD_S`]:
+    /// without a magnetometer the heading is seen only through the GPS
+    /// velocity's turns, and a fix timed wrong turns the wrong way.
+    pub(super) fn attitude_from_gps_withheld(&self) -> bool {
+        self.heading_unknown()
+            || (self.aligned_moving
+                && self.delay_std_s() > T::lit(DELAY_KNOWN_STD_S)
+                && self
+                    .ekf
+                    .time_us()
+                    .is_some_and(|t| self.ekf.is_initialized() && !self.mag_recent(t)))
+    }
+
     /// A magnetometer update was fused within [`HEADING_STALE_US`] of the
     /// horizon time `t_h_us`: the yaw estimator rests.
     fn mag_recent(&self, t_h_us: u64) -> bool {
@@ -213,8 +258,12 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     pub(super) fn flush_yaw_gsf(&mut self) {
         let (dv, yaw, us) = self.gsf_step;
         if us > 0 {
-            self.yaw_gsf
-                .predict(dv, yaw, T::seconds_from_us(u64::from(us)));
+            self.yaw_gsf.predict(
+                dv,
+                yaw,
+                T::seconds_from_us(u64::from(us)),
+                self.ekf.tilt_std(),
+            );
             self.gsf_step = ([T::zero(); 2], T::zero(), 0);
         }
     }
@@ -251,32 +300,41 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
             self.gsf_disagreements = 0;
             return;
         };
-        // The horizon filter's heading variance: dpsi/dq = 4 dq/dpsi for a unit q.
-        let x = self.ekf.state_vector();
-        let q = Quaternion::new(x[QUAT], x[QUAT + 1], x[QUAT + 2], x[QUAT + 3]);
-        let d = yaw_direction(&q) * T::lit(4.0);
-        let p = self.ekf.covariance().fixed_view::<4, 4>(QUAT, QUAT);
-        let ours_var = (d.transpose() * p * d)[0].max(T::zero());
+        let ours_var = self.horizon_heading_var();
         let diff = wrap_pi(yaw - h[1].atan2(h[0]));
         let bound = T::lit(GSF_DISAGREEMENT_RAD).max(T::lit(3.0) * (var + ours_var).sqrt());
+        if self.heading_unknown() {
+            // The first convergence: the heading is checked. Set at once
+            // where the two disagree; the tilt and the biases were kept
+            // from the GPS while the heading was unknown (`push_gps`),
+            // nothing to reopen. Where they agree the estimator's yaw is
+            // not taken: levelled by a tilt the fixes could not correct
+            // yet, it can be sure and wrong (docs/nav.md).
+            self.heading_checked = true;
+            if diff.abs() > bound {
+                self.reset_yaw(diff, var, false);
+            }
+            return;
+        }
         if diff.abs() > bound {
             self.gsf_disagreements = self.gsf_disagreements.saturating_add(1);
         } else {
             self.gsf_disagreements = 0;
         }
         if self.gsf_disagreements >= GSF_DISAGREEMENT_FIXES {
-            self.reset_yaw(diff, var);
+            self.reset_yaw(diff, var, true);
         }
     }
 
     /// Turns the horizon filter's attitude by `diff_rad` about down and
-    /// sets its heading variance to `var_rad2`. The tilt and the
+    /// sets its heading variance to `var_rad2` (the attitude's
+    /// cross-covariances cleared). With `reopen` the tilt and the
     /// accelerometer bias were fitted to the GPS velocity through the wrong
     /// heading, so they are reopened: the tilt standard deviation raised to
     /// at least [`MOVING_TILT_STD_RAD`], the accelerometer bias set back to
-    /// its configured start and variance (cross-covariances of both cleared).
+    /// its configured start and variance (its cross-covariances cleared).
     #[inline(never)]
-    fn reset_yaw(&mut self, diff_rad: T, var_rad2: T) {
+    fn reset_yaw(&mut self, diff_rad: T, var_rad2: T, reopen: bool) {
         let (Some(mut x), Some(t_us)) = (self.ekf.nav_state(), self.ekf.time_us()) else {
             return;
         };
@@ -284,22 +342,27 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), diff_rad);
         x.attitude = turn * x.attitude;
         let c = &self.config.ekf;
-        x.accel_bias_m_s2 = c.initial_accel_bias_m_s2;
-        for i in (QUAT..QUAT + 4).chain(ACCEL_BIAS..ACCEL_BIAS + 3) {
+        let tilt = self.ekf.tilt_std();
+        let tilt = if reopen {
+            tilt.max(T::lit(MOVING_TILT_STD_RAD))
+                .max(c.initial_tilt_std_rad)
+        } else {
+            tilt
+        };
+        let bias = if reopen { 3 } else { 0 };
+        for i in (QUAT..QUAT + 4).chain(ACCEL_BIAS..ACCEL_BIAS + bias) {
             for j in 0..16 {
                 p[(i, j)] = T::zero();
                 p[(j, i)] = T::zero();
             }
         }
-        let bias_var = c.initial_accel_bias_std_m_s2 * c.initial_accel_bias_std_m_s2;
-        for i in ACCEL_BIAS..ACCEL_BIAS + 3 {
-            p[(i, i)] = bias_var;
+        if reopen {
+            x.accel_bias_m_s2 = c.initial_accel_bias_m_s2;
+            let bias_var = c.initial_accel_bias_std_m_s2 * c.initial_accel_bias_std_m_s2;
+            for i in ACCEL_BIAS..ACCEL_BIAS + 3 {
+                p[(i, i)] = bias_var;
+            }
         }
-        let tilt = self
-            .ekf
-            .tilt_std()
-            .max(T::lit(MOVING_TILT_STD_RAD))
-            .max(c.initial_tilt_std_rad);
         p.fixed_view_mut::<4, 4>(QUAT, QUAT)
             .copy_from(&attitude_covariance(
                 &x.attitude,

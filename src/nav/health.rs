@@ -211,7 +211,9 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 status: estimated.then(|| self.delay_loop.status()),
             },
             mag: self.ekf.mag_modes(),
-            yaw_gsf: self.yaw_gsf.health(self.gsf_yaw_resets),
+            yaw_gsf: self
+                .yaw_gsf
+                .health(self.gsf_yaw_resets, self.fixes_position_velocity_only),
         }
     }
 

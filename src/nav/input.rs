@@ -13,6 +13,7 @@ use crate::ekf16::state::{ACCEL_BIAS, GYRO_BIAS, POS, VEL, quaternion_of};
 use crate::error::Error;
 use crate::estimate::{Estimate, GpsOutcome, MagOutcome, Navigator};
 use crate::geo::rotation_matrix;
+use crate::kalman::GainRestriction;
 use crate::scalar::{Scalar, us_to_s};
 use crate::sensors::{GpsFix, Imu, ImuSample, MagSample, checked_gps, checked_imu, checked_mag};
 use crate::zero_option::ZeroOption;
@@ -196,9 +197,19 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
             None
         };
         let (timing_variance_s2, accel) = self.gps_timing_noise();
-        let outcome = self
-            .ekf
-            .push_gps_with_timing_noise(&fix, timing_variance_s2, &accel)?;
+        // Through an unknown heading, or at an unknown time, a fix would set
+        // the tilt and the biases to whatever turns the IMU's accelerations
+        // into the GPS velocity's: it corrects the position and the velocity
+        // alone (`alignment.rs`).
+        let restriction = self
+            .attitude_from_gps_withheld()
+            .then_some(GainRestriction::KeepRows(POSITION_VELOCITY_ROWS));
+        let outcome =
+            self.ekf
+                .push_gps_with_timing_noise(&fix, timing_variance_s2, &accel, restriction)?;
+        if restriction.is_some() && matches!(outcome, GpsOutcome::Fused { .. }) {
+            self.fixes_position_velocity_only = self.fixes_position_velocity_only.saturating_add(1);
+        }
         if let (Some(t_us), Some(x)) = (self.ekf.time_us(), self.ekf.nav_state()) {
             self.last_fix_velocity = Some((t_us, x.velocity_ned_m_s));
         }
@@ -280,3 +291,7 @@ impl<T: Scalar, const HIST: usize> Navigator<T> for DelayCompensatedNav<T, HIST>
         }))
     }
 }
+
+/// The rows of the gain kept when a fusion may move the position and the
+/// velocity alone (bit `i` for state `i`).
+const POSITION_VELOCITY_ROWS: u32 = (0b111 << POS) | (0b111 << VEL);

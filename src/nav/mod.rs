@@ -236,6 +236,18 @@ pub const GSF_DISAGREEMENT_FIXES: u8 = 10;
 pub const GSF_PREDICT_PERIOD_US: u64 = 50_000;
 /// Least heading disagreement that counts towards a reset, rad (15 deg).
 pub const GSF_DISAGREEMENT_RAD: f64 = 0.2618;
+/// Heading standard deviation of the horizon filter above which, after an
+/// alignment made in motion, with no recent magnetometer update and until
+/// the yaw estimator has converged, its heading counts as unknown, rad: the
+/// estimator's own convergence threshold (15 deg). GPS fixes then correct
+/// the position and the velocity alone; the converged estimator sets the
+/// heading at once if the two disagree (`alignment.rs`).
+pub const HEADING_UNKNOWN_STD_RAD: f64 = yaw_gsf::CONVERGED_YAW_STD_RAD;
+/// Delay standard deviation above which, after an alignment made in motion
+/// with no recent magnetometer update, the GPS fixes correct the position
+/// and the velocity alone, s (30 ms: 0.3 m/s of velocity in a 10 m/s^2
+/// manoeuvre, the order of a fix's own velocity noise).
+pub const DELAY_KNOWN_STD_S: f64 = 0.03;
 
 /// The smallest history `HIST` (IMU samples) that
 /// [`DelayCompensatedNav::configure`] accepts for delays up to
@@ -361,6 +373,12 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     retained_biases: Option<(SVector<T, 6>, SVector<T, 6>)>,
     /// A magnetometer sample has reached the horizon EKF since the start.
     mag_at_horizon: bool,
+    /// The horizon filter was aligned in motion ([`MOVING_SPEED_M_S`]): an
+    /// in-flight start or a reset in flight (`alignment.rs`).
+    aligned_moving: bool,
+    /// The yaw estimator has converged since that alignment (agreeing with
+    /// the horizon filter or setting its heading).
+    heading_checked: bool,
     /// Whether the accepted fixes are geodetic (`Some(true)`) or NED.
     geodetic_fixes: ZeroOption<bool>,
     last_update: ZeroOption<DelayUpdate<T>>,
@@ -384,6 +402,9 @@ pub struct DelayCompensatedNav<T: Scalar, const HIST: usize = DEFAULT_HISTORY> {
     gsf_step: ([T; 2], T, u32),
     /// Headings set from the yaw estimator (saturates).
     gsf_yaw_resets: u16,
+    /// Fixes fused into the position and velocity alone (saturates;
+    /// `alignment.rs`).
+    fixes_position_velocity_only: u16,
     /// Consecutive fixes at which the converged estimator and the horizon
     /// filter disagreed ([`GSF_DISAGREEMENT_FIXES`]).
     gsf_disagreements: u8,
@@ -468,6 +489,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         valid_delay_updates: 0,
         retained_biases: None,
         mag_at_horizon: false,
+        aligned_moving: false,
+        heading_checked: false,
         geodetic_fixes: ZeroOption::None,
         last_update: ZeroOption::None,
         pending_delay_fix: None,
@@ -477,6 +500,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         yaw_gsf: YawGsf::BLANK,
         gsf_step: ([T::ZERO; 2], T::ZERO, 0),
         gsf_yaw_resets: 0,
+        fixes_position_velocity_only: 0,
         gsf_disagreements: 0,
         refusals: NavRefusals::ZERO,
         imu_samples: 0,
@@ -566,6 +590,8 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.valid_delay_updates = 0;
         self.retained_biases = None;
         self.mag_at_horizon = false;
+        self.aligned_moving = false;
+        self.heading_checked = false;
         self.geodetic_fixes = ZeroOption::None;
         self.last_update = ZeroOption::None;
         self.pending_delay_fix = None;
@@ -575,6 +601,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
         self.yaw_gsf = YawGsf::BLANK;
         self.gsf_step = ([T::zero(); 2], T::zero(), 0);
         self.gsf_yaw_resets = 0;
+        self.fixes_position_velocity_only = 0;
         self.gsf_disagreements = 0;
         self.refusals = NavRefusals::default();
         self.imu_samples = 0;

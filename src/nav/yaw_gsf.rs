@@ -71,6 +71,7 @@
 //! `M = 5` models of 3 states: 10 numbers each (state, 6 covariance
 //! entries, weight), 204 B in `f32`. No allocation, no panic.
 
+use crate::ekf16::STANDARD_GRAVITY;
 use crate::geo::wrap_pi;
 use crate::scalar::Scalar;
 
@@ -187,20 +188,22 @@ impl<T: Scalar> YawGsf<T> {
     /// Predicts every model over `dt_s` with the heading-frame delta
     /// velocity `dv_heading_m_s` (m/s) and the yaw increment `dyaw_rad`
     /// (module docs). Not started or non-finite input: nothing happens.
-    pub fn predict(&mut self, dv_heading_m_s: [T; 2], dyaw_rad: T, dt_s: T) {
+    pub fn predict(&mut self, dv_heading_m_s: [T; 2], dyaw_rad: T, dt_s: T, level_std_rad: T) {
         let [dvx, dvy] = dv_heading_m_s;
         if !(self.started
             && dvx.is_finite()
             && dvy.is_finite()
             && dyaw_rad.is_finite()
             && dt_s.is_finite()
-            && dt_s >= T::zero())
+            && dt_s >= T::zero()
+            && level_std_rad.is_finite())
         {
             return;
         }
         let q_v = {
-            let s = T::lit(ACCEL_NOISE_M_S2) * dt_s;
-            s * s
+            let level = T::lit(STANDARD_GRAVITY) * level_std_rad.min(T::one());
+            let a = T::lit(ACCEL_NOISE_M_S2);
+            (a * a + level * level) * dt_s * dt_s
         };
         let q_psi = {
             let s = T::lit(GYRO_NOISE_RAD_S) * dt_s;
@@ -356,11 +359,19 @@ pub struct YawGsfHealth<T: Scalar> {
     /// without a magnetometer, and each reset after a sustained
     /// disagreement (saturates).
     pub yaw_resets: u16,
+    /// GPS fixes the navigator fused into its position and velocity alone:
+    /// after an alignment in motion without a recent magnetometer update,
+    /// while its heading was unknown
+    /// ([`HEADING_UNKNOWN_STD_RAD`](crate::nav::HEADING_UNKNOWN_STD_RAD)) or
+    /// the delay not yet known
+    /// ([`DELAY_KNOWN_STD_S`](crate::nav::DELAY_KNOWN_STD_S)); saturates.
+    pub fixes_position_velocity_only: u16,
 }
 
 impl<T: Scalar> YawGsf<T> {
-    /// The bank's part of [`YawGsfHealth`] (`yaw_resets` is the caller's).
-    pub fn health(&self, yaw_resets: u16) -> YawGsfHealth<T> {
+    /// The bank's part of [`YawGsfHealth`] (`yaw_resets` and
+    /// `fixes_position_velocity_only` are the caller's).
+    pub fn health(&self, yaw_resets: u16, fixes_position_velocity_only: u16) -> YawGsfHealth<T> {
         YawGsfHealth {
             yaw_rad: self.yaw().map(|(y, var)| (y, var.max(T::zero()).sqrt())),
             weights: self.w,
@@ -368,6 +379,7 @@ impl<T: Scalar> YawGsf<T> {
             updates: self.updates,
             restarts: self.restarts,
             yaw_resets,
+            fixes_position_velocity_only,
         }
     }
 }
@@ -427,6 +439,7 @@ mod tests {
                 [T::lit(dv[0]), T::lit(dv[1])],
                 T::lit(yaw_next - yaw),
                 T::lit(dt),
+                T::zero(),
             );
         }
         (gsf, yaw_true)
@@ -478,15 +491,25 @@ mod tests {
     /// start, and the first velocity starts it.
     fn bad_input_changes_nothing<T: Scalar>() {
         let mut gsf = YawGsf::<T>::BLANK;
-        gsf.predict([T::one(), T::zero()], T::zero(), T::lit(0.01));
+        gsf.predict([T::one(), T::zero()], T::zero(), T::lit(0.01), T::zero());
         assert_eq!(gsf, YawGsf::BLANK);
         assert!(gsf.yaw().is_none());
         assert!(!gsf.update([T::lit(f64::NAN), T::zero()], T::one()));
         assert!(gsf.update([T::one(), T::zero()], T::lit(0.3)));
         assert!(gsf.is_started());
         let before = gsf;
-        gsf.predict([T::lit(f64::NAN), T::zero()], T::zero(), T::lit(0.01));
-        gsf.predict([T::zero(), T::zero()], T::lit(f64::INFINITY), T::lit(0.01));
+        gsf.predict(
+            [T::lit(f64::NAN), T::zero()],
+            T::zero(),
+            T::lit(0.01),
+            T::zero(),
+        );
+        gsf.predict(
+            [T::zero(), T::zero()],
+            T::lit(f64::INFINITY),
+            T::lit(0.01),
+            T::zero(),
+        );
         assert!(!gsf.update([T::one(), T::zero()], T::lit(f64::NAN)));
         assert_eq!(gsf, before);
         // An absurd velocity leaves every likelihood finite in the log domain.

@@ -84,7 +84,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         r: &SMatrix<T, M, M>,
         gate: T,
         measurement: &'static str,
-        gain_restriction: Option<&SMatrix<T, N, N>>,
+        gain_restriction: Option<GainRestriction<'_, T, N>>,
     ) -> Result<FusionRecord<T, M>, Error> {
         // An absurd correction (the quaternion far from unit norm) is
         // refused before `P` changes.
@@ -123,7 +123,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         &mut self,
         gps: &G,
         mut model: impl FnMut(&Self, GpsBlock, &GpsMeasurement<T>) -> GpsBlockModel<T, N>,
-        gain_restriction: Option<&SMatrix<T, N, N>>,
+        gain_restriction: Option<GainRestriction<'_, T, N>>,
         mut after_fusion: impl FnMut(&mut Self),
     ) -> Result<GpsOutcome<T>, Error> {
         let m = match self.begin_gps(gps)? {

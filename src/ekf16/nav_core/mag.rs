@@ -205,7 +205,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             &r,
             gate,
             "mag",
-            restriction.as_ref(),
+            restriction.as_ref().map(GainRestriction::Matrix),
         )
     }
 

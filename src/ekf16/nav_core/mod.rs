@@ -81,7 +81,7 @@ use crate::geo::{
     LocalFrame, euler_from_quaternion, magnetic_field_ned, quaternion_from_euler,
     roll_pitch_from_accel, rotation_matrix, tilt_compensated_heading, tilt_compensated_heading_sc,
 };
-use crate::kalman;
+use crate::kalman::{self, GainRestriction};
 use crate::scalar::{Scalar, all_finite, all_finite_fixed, us_to_s, zeros_const};
 use crate::sensors::{
     GpsFix, GpsPosition, Imu, ImuSample, MagSample, check_time, checked_gps, checked_imu,
