@@ -396,6 +396,25 @@ def faults():
             *table(["name", "fault", "measured", "value", "limit", ""], rows)]
 
 
+def faults_seeds():
+    doc = load("faults-seeds.json")
+    seeds = doc["seeds"]
+    rows = []
+    for r in doc["faults"]:
+        cells = []
+        for x in r["per_seed"]:
+            cell = fixed(x, 3, "none")
+            cells.append(cell if x is not None and x <= r["limit"] else f"**{cell}**")
+        rows.append([r["name"], *cells, fixed(r["measured"], 3, "none"), f"{r['limit']:g}",
+                     f"{r['passed_seeds']}/{len(seeds)}",
+                     "pass" if r["passed"] else "**FAIL**"])
+    first, last = seeds[0], seeds[-1]
+    return [*sh(f"{REPRO} --faults --seed {first} --seeds {len(seeds)} "
+                "--json docs/results/faults-seeds.json"), "",
+            *table(["row", *(f"seed {s}" for s in seeds), "median", "limit", "seeds passed",
+                    f"seeds {first}-{last}"], rows)]
+
+
 def integrity():
     doc = load("integrity.json")
     rows = []
@@ -875,6 +894,7 @@ RENDERERS = {
     "sweep-imu_rate": lambda: sweep("imu_rate"),
     "sweep-delay": lambda: sweep("delay"),
     "faults": faults,
+    "faults-seeds": faults_seeds,
     "integrity": integrity,
     "integrity-stanford": integrity_stanford,
     "delay-suite": delay_suite,

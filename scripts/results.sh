@@ -79,6 +79,7 @@ log171() {
 }
 step log171 log171
 step faults reproduce --faults --json "$out/faults.json"
+step faults-seeds reproduce --faults --seed 1 --seeds 5 --json "$out/faults-seeds.json"
 step integrity reproduce --integrity --json "$out/integrity.json"
 step delay-suite reproduce --delay-suite --json "$out/delay-suite.json"
 step cortex-m4 benches/cortex-m4/run --json "$out/cortex-m4.json"

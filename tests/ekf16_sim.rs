@@ -632,8 +632,6 @@ fn one_low_sample_alignment<T: Scalar>() {
     }
     let r = ekf.refusals();
     assert_eq!(r.mag_field_offset, 0, "{r:?}");
-    eprintln!("{r:?}");
-    eprintln!("{r:?}");
     assert_eq!(ekf.mag_modes().mode, MagMode::ThreeAxis);
 }
 
@@ -645,4 +643,65 @@ fn one_low_sample_alignment_f32() {
 #[test]
 fn one_low_sample_alignment_f64() {
     one_low_sample_alignment::<f64>();
+}
+
+/// A magnetometer first heard after the alignment (late, or the filter rebuilt in motion),
+/// whose first sample is 45 % below the field's norm and seen 25 deg off its inclination (a
+/// 3-sigma norm and a tilt being levelled, as in the fault suite's in-flight start, seed 4):
+/// `(samples refused as disturbed, s fused 3-axis)` over 40 s of the `high` flight. The learned
+/// field is the running mean of its first samples (norm and inclination alike), and gates no
+/// sample before it is the mean of `MAG_FIELD_MIN_SAMPLES`.
+fn late_field_from_one_bad_sample<T: Scalar>(bad: bool) -> (u32, f64) {
+    let sim = no_delay(Scenario::High, 4, 40.0);
+    let events: Vec<SimEvent> = Simulation::new(sim.clone()).unwrap().collect();
+    let mut ekf = Ekf16::new(table3_filter::<T>(&sim)).unwrap();
+    let mut first = bad;
+    for event in events {
+        match event {
+            SimEvent::Imu { sample, .. } => {
+                let _ = ekf.push_imu(&imu_sample::<T>(&sample));
+            }
+            SimEvent::Mag(_) if !ekf.is_initialized() => {}
+            SimEvent::Mag(mut m) => {
+                if first {
+                    let pitch =
+                        nalgebra::Rotation3::from_euler_angles(0.0, 40f64.to_radians(), 0.0);
+                    m.field_body = pitch * m.field_body * 0.6;
+                    first = false;
+                }
+                let _ = ekf.push_mag(&mag_sample::<T>(&m));
+            }
+            SimEvent::Gps { fix, .. } => {
+                let _ = ekf.push_gps(&gps_fix::<T>(&fix));
+            }
+        }
+    }
+    let three_axis_us = ekf.mag_modes().time_us[MagMode::ThreeAxis.index()];
+    (ekf.refusals().mag_disturbed, three_axis_us as f64 * 1e-6)
+}
+
+/// Measured (f64): 5 samples refused as disturbed over the run (4 without the bad sample),
+/// and 38.8 s of 3-axis fusion. Checking samples against the field from its first
+/// sample on refused 9 more (with an in-flight alignment's tilt being levelled, the
+/// magnetometer monitor then saw an offset and refused every sample for 2 s: the fault suite's
+/// `inflight_tilt_5s`, seed 4, 5.3 deg); an inclination learned at the slow rate alone refused
+/// 966 samples.
+fn a_field_first_heard_after_the_alignment_is_learned_from_its_first_samples<T: Scalar>() {
+    let (clean, _) = late_field_from_one_bad_sample::<T>(false);
+    let (disturbed, three_axis_s) = late_field_from_one_bad_sample::<T>(true);
+    assert!(
+        disturbed <= clean + 2,
+        "{disturbed} samples refused as disturbed ({clean} without the bad one)"
+    );
+    assert!(three_axis_s > 35.0, "{three_axis_s} s of 3-axis fusion");
+}
+
+#[test]
+fn a_field_first_heard_after_the_alignment_is_learned_from_its_first_samples_f32() {
+    a_field_first_heard_after_the_alignment_is_learned_from_its_first_samples::<f32>();
+}
+
+#[test]
+fn a_field_first_heard_after_the_alignment_is_learned_from_its_first_samples_f64() {
+    a_field_first_heard_after_the_alignment_is_learned_from_its_first_samples::<f64>();
 }

@@ -44,7 +44,8 @@ pub struct Args {
     /// Which acceleration scenario to run.
     #[arg(long, value_enum, default_value = "all")]
     pub scenario: ScenarioChoice,
-    /// Number of seeds per scenario [default: 5, quick: 2].
+    /// Number of seeds per scenario [default: 5, quick: 2]. With --faults: the suite on
+    /// seeds S..S+N, a row passing on more than half of them [default: seed S alone].
     #[arg(long)]
     pub seeds: Option<u64>,
     /// First seed; the run uses seeds S, S+1, ...

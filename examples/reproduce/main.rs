@@ -13,6 +13,7 @@
 //! cargo run --release --features sim --example reproduce -- --seeds 20                  # Monte Carlo
 //! cargo run --release --features sim --example reproduce -- --sweep delay --json target/sweep.json
 //! cargo run --release --features sim --example reproduce -- --faults --json target/faults.json   # fault suite
+//! cargo run --release --features sim --example reproduce -- --faults --seeds 5   # on seeds 1-5
 //! cargo run --release --features sim --example reproduce -- --delay-suite --json d.json  # delay suite
 //! cargo run --release --features sim --example reproduce -- --integrity --json target/integrity.json
 //! cargo run --release --features sim --example reproduce -- --seed 4 \
@@ -210,6 +211,17 @@ fn main() -> Result<(), Box<dyn Error>> {
             debug_row: std::env::var("FAULT_DEBUG").ok(),
             ..FaultsOptions::default()
         };
+        if let Some(n) = args.seeds {
+            // The suite on seeds S..S+N: each row's figure per seed, its median and worst.
+            let seeds: Vec<u64> = (args.seed..args.seed + n).collect();
+            let result = faults::run_seeds(&options, &seeds, &progress)?;
+            eprint!("{result}");
+            write_json(&args.json, &result.to_json())?;
+            if args.check {
+                enforce(&result.verdicts(), &args.known_failures)?;
+            }
+            return Ok(());
+        }
         let result = faults::run(&options, &progress)?;
         eprint!("{result}");
         write_json(&args.json, &result.to_json())?;

@@ -262,12 +262,19 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// The field norm and inclination of a magnetometer sample (the
     /// inclination seen with the estimated attitude); `None` when either is
-    /// too far from the learned field: a disturbance. The first sample of a
-    /// filter that learned no field passes as it is.
+    /// too far from the learned field: a disturbance. While the learned field
+    /// is the mean of fewer than [`MAG_FIELD_MIN_SAMPLES`] samples (none at
+    /// all when the filter was initialized without a magnetometer sample, or
+    /// rebuilt in motion) every sample passes and teaches it: a field learned
+    /// from one sample 3 sigma off its norm refused every later sample as
+    /// disturbed, and so was never corrected.
     pub(super) fn check_mag_field(&self, field_body: &Vector3<T>) -> Option<(T, T)> {
         let rot = rotation_matrix(&quaternion_of(&self.x));
         let sample = (field_body.norm(), field_inclination(&rot, field_body));
-        let Some((norm, inclination)) = self.mag_field else {
+        let learned = self
+            .mag_field
+            .filter(|_| self.mag_monitor.learned_count() >= MAG_FIELD_MIN_SAMPLES);
+        let Some((norm, inclination)) = learned else {
             return Some(sample);
         };
         let c = &self.config;
@@ -348,16 +355,19 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         cov[(0, 0)].max(cov[(1, 1)]).max(T::zero()).sqrt()
     }
 
-    /// Moves the learned field toward a fused sample's norm and inclination.
-    /// The norm: a running mean from the alignment's samples on, until it is
-    /// the mean of `1 / mag_field_learning_rate` samples, then an exponential
-    /// mean of that weight (the magnetometer monitor's weights,
-    /// `mag_monitor.rs`). The alignment may have seen a single sample: a norm
-    /// that stayed at it (the `high` scenario, seed 4: 15 % low) refused the
-    /// samples on one side of it for tens of seconds and biased the monitor.
-    /// The inclination: an exponential mean of weight
-    /// `mag_field_learning_rate` (each sample is seen through the attitude,
-    /// and a running mean would weigh those of an alignment most).
+    /// Moves the learned field toward a fused sample's norm and inclination:
+    /// a running mean from the alignment's samples on, until it is the mean
+    /// of `1 / mag_field_learning_rate` samples, then an exponential mean of
+    /// that weight (the magnetometer monitor's weights, `mag_monitor.rs`).
+    /// The alignment may have seen a single sample, or none (a magnetometer
+    /// heard late, a filter rebuilt in motion): a norm that stayed at it (the
+    /// `high` scenario, seed 4: 15 % low) refused the samples on one side of
+    /// it for tens of seconds and biased the monitor, and an inclination that
+    /// stayed at it (one sample is 8 deg off with the Table 3 noise) kept
+    /// the 3-axis update off for as long (`mag_late`, seed 3: 13 s). The
+    /// running mean weighs the alignment's own samples, seen through the
+    /// accelerometer's tilt, less than the exponential mean would: after `k`
+    /// more samples they hold `n0 / (n0 + k)` of it against `(1 - w)^k`.
     /// While the tilt standard deviation is above [`MAG_INFLIGHT_TILT_STD_RAD`]
     /// (an alignment in motion), the inclination follows the samples with
     /// the weight [`MAG_ALIGNING_INCLINATION_RATE`] at least: each is seen
@@ -367,9 +377,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         let w = self.config.mag_field_learning_rate;
         let wn = self.mag_monitor.next_weight(w);
         let wi = if self.tilt_std() > T::lit(MAG_INFLIGHT_TILT_STD_RAD) {
-            w.max(T::lit(MAG_ALIGNING_INCLINATION_RATE))
+            wn.max(T::lit(MAG_ALIGNING_INCLINATION_RATE))
         } else {
-            w
+            wn
         };
         self.mag_field = Some(match self.mag_field {
             None => sample,

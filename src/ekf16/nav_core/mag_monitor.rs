@@ -197,6 +197,11 @@ impl<T: Scalar> MagMonitor<T> {
         learning_rate.max(T::one() / T::lit(f64::from(k)))
     }
 
+    /// The samples the learned norm and direction are the mean of (saturating).
+    pub(crate) fn learned_count(&self) -> u32 {
+        self.learned_count
+    }
+
     /// The held relative offset `beta` (module docs); 0 when none was seen.
     pub(crate) fn offset(&self) -> T {
         self.offset

@@ -115,6 +115,10 @@ pub const MAG_INFLIGHT_TILT_STD_RAD: f64 = 0.15;
 /// filter aligns in motion (tilt standard deviation above
 /// [`MAG_INFLIGHT_TILT_STD_RAD`]): 20 samples, 0.2 s at 100 Hz.
 pub const MAG_ALIGNING_INCLINATION_RATE: f64 = 0.05;
+/// Samples the learned magnetometer field must be the mean of before it
+/// refuses a sample as disturbed (its norm known to `1 / sqrt(20)` of one
+/// sample's noise; 0.2 s at 100 Hz).
+pub const MAG_FIELD_MIN_SAMPLES: u32 = 20;
 /// Interval between magnetometer samples beyond which the time counts as
 /// [`MagMode::NoFusion`](super::MagMode::NoFusion), µs.
 pub const MAG_GAP_US: u64 = 1_000_000;

@@ -24,6 +24,10 @@
 //!
 //! **Text** (`Display` of [`FaultsResult`]): one line per row, `name measured (limit L)
 //! pass|FAIL`, after the row's errors once a second when it is [`FaultsOptions::debug_row`].
+//!
+//! **Seeds** ([`run_seeds`], `reproduce --faults --seeds N`): the suite once per seed; a row
+//! passes when more than half of the seeds pass it, its figure the median of theirs
+//! ([`FaultsSeedsResult`], its JSON in [`FaultsSeedsResult::to_json`]).
 
 use super::setup::{DelayStart, calibrated_start, proposed};
 use super::{Progress, ProgressFn, Steps, SuiteError, Task, json_number, parallel_map};
@@ -47,7 +51,8 @@ pub struct FaultsOptions {
     pub seed: u64,
     /// Every time of the suite scaled by this (1: the 60 s runs) [default: 1].
     pub scale: f64,
-    /// A row whose errors the result keeps once a second ([`FaultsResult::debug`]).
+    /// A row whose errors the result keeps once a second ([`FaultsResult::debug`]); `"clean"`
+    /// keeps the clean run's.
     pub debug_row: Option<String>,
     /// Runs at once [default: 2].
     pub threads: usize,
@@ -164,6 +169,10 @@ pub fn run(options: &FaultsOptions, progress: ProgressFn) -> Result<FaultsResult
             .map(|k| traces[k].as_slice())
     };
     let mut debug = None;
+    if options.debug_row.as_deref() == Some("clean") {
+        let clean = reference_trace(Reference::Clean).unwrap_or_default();
+        debug = Some(("clean", clean.iter().step_by(DEBUG_STEP).copied().collect()));
+    }
     let rows = cases
         .iter()
         .enumerate()
@@ -228,21 +237,28 @@ impl FaultsResult {
 
 impl fmt::Display for FaultsResult {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for r in &self.rows {
-            if let Some((name, points)) = &self.debug
-                && *name == r.name
-            {
-                for p in points {
-                    writeln!(
-                        f,
-                        "{:.1} tilt {:.2} heading {:.2} herr {:.2}",
-                        p.t_s,
-                        p.tilt_deg,
-                        p.heading_deg,
-                        p.horizontal_error_m([0.0; 2])
-                    )?;
-                }
+        let write_debug = |f: &mut fmt::Formatter<'_>, row: &str| -> fmt::Result {
+            let Some((name, points)) = &self.debug else {
+                return Ok(());
+            };
+            if *name != row {
+                return Ok(());
             }
+            for p in points {
+                writeln!(
+                    f,
+                    "{:.1} tilt {:.2} heading {:.2} herr {:.2}",
+                    p.t_s,
+                    p.tilt_deg,
+                    p.heading_deg,
+                    p.horizontal_error_m([0.0; 2])
+                )?;
+            }
+            Ok(())
+        };
+        write_debug(f, "clean")?;
+        for r in &self.rows {
+            write_debug(f, r.name)?;
             writeln!(
                 f,
                 "{:<24} {:>10.3} (limit {:>5}) {}",
@@ -250,6 +266,186 @@ impl fmt::Display for FaultsResult {
                 r.measured,
                 r.limit,
                 if r.passed { "pass" } else { "FAIL" }
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The suite on several seeds ([`run_seeds`]): one run per seed, and per row the seeds'
+/// figures, their median and the worst of them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaultsSeedsResult {
+    /// One run per seed, in the order of the seeds.
+    pub runs: Vec<FaultsResult>,
+}
+
+/// One row over the seeds of a [`FaultsSeedsResult`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaultSeedsRow {
+    /// The row's name.
+    pub name: &'static str,
+    /// What is measured.
+    pub criterion: &'static str,
+    /// The limit.
+    pub limit: f64,
+    /// The figure of each seed (NaN: none; infinite: never settled).
+    pub per_seed: Vec<f64>,
+    /// Seeds whose run passed the row.
+    pub passed_seeds: usize,
+}
+
+impl FaultSeedsRow {
+    /// The median of the seeds' figures, a NaN counted as the worst (+inf); the mean of
+    /// the two middle ones for an even count.
+    pub fn median(&self) -> f64 {
+        let mut v: Vec<f64> = self.per_seed.iter().map(|&x| worst_if_nan(x)).collect();
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => v[n / 2],
+            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    }
+
+    /// The largest figure, a NaN counted as +inf (every row's figure is worse when larger).
+    pub fn worst(&self) -> f64 {
+        self.per_seed
+            .iter()
+            .map(|&x| worst_if_nan(x))
+            .fold(f64::NAN, f64::max)
+    }
+
+    /// More than half of the seeds passed the row.
+    pub fn passed(&self) -> bool {
+        2 * self.passed_seeds > self.per_seed.len()
+    }
+}
+
+fn worst_if_nan(x: f64) -> f64 {
+    if x.is_nan() { f64::INFINITY } else { x }
+}
+
+/// Runs the suite once per seed of `seeds` (each as [`run`] with `options.seed` replaced).
+pub fn run_seeds(
+    options: &FaultsOptions,
+    seeds: &[u64],
+    progress: ProgressFn,
+) -> Result<FaultsSeedsResult, SuiteError> {
+    if seeds.is_empty() {
+        return Err(SuiteError::InvalidOption {
+            option: "seeds",
+            reason: "at least one seed is needed".into(),
+        });
+    }
+    let runs = seeds
+        .iter()
+        .map(|&seed| {
+            let options = FaultsOptions {
+                seed,
+                ..options.clone()
+            };
+            run(&options, progress)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(FaultsSeedsResult { runs })
+}
+
+impl FaultsSeedsResult {
+    /// The seeds, in order.
+    pub fn seeds(&self) -> Vec<u64> {
+        self.runs.iter().map(|r| r.options.seed).collect()
+    }
+
+    /// Each row over the seeds, in the suite's order.
+    pub fn rows(&self) -> Vec<FaultSeedsRow> {
+        let Some(first) = self.runs.first() else {
+            return Vec::new();
+        };
+        first
+            .rows
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let outcomes = self.runs.iter().filter_map(|run| run.rows.get(i));
+                FaultSeedsRow {
+                    name: r.name,
+                    criterion: r.criterion,
+                    limit: r.limit,
+                    per_seed: outcomes.clone().map(|o| o.measured).collect(),
+                    passed_seeds: outcomes.filter(|o| o.passed).count(),
+                }
+            })
+            .collect()
+    }
+
+    /// One verdict per row: passed on more than half of the seeds; the figure is the median.
+    pub fn verdicts(&self) -> Vec<super::check::Verdict> {
+        let n = self.runs.len();
+        self.rows()
+            .iter()
+            .map(|r| super::check::Verdict {
+                name: r.name.to_string(),
+                passed: r.passed(),
+                measured: Some(r.median()),
+                limit: format!(
+                    "{} on more than half of {n} seeds, median shown ({})",
+                    r.limit, r.criterion
+                ),
+            })
+            .collect()
+    }
+
+    /// The JSON document: `seeds`, `duration_s`, `estimator`, and `faults`: per row `name`,
+    /// `criterion`, `limit`, `measured` (the median; `null` when not finite), `per_seed`
+    /// (`null` where not finite), `worst`, `passed_seeds`, `passed` (more than half).
+    pub fn to_json(&self) -> Value {
+        let rows: Vec<Value> = self
+            .rows()
+            .iter()
+            .map(|r| {
+                json!({
+                    "name": r.name,
+                    "criterion": r.criterion,
+                    "limit": r.limit,
+                    "measured": json_number(r.median()),
+                    "per_seed": r.per_seed.iter().map(|&x| json_number(x)).collect::<Vec<_>>(),
+                    "worst": json_number(r.worst()),
+                    "passed_seeds": r.passed_seeds,
+                    "passed": r.passed(),
+                })
+            })
+            .collect();
+        json!({
+            "seeds": self.seeds(),
+            "duration_s": self.runs.first().map_or(60.0, |r| 60.0 * r.options.scale),
+            "estimator": "proposed",
+            "faults": rows,
+        })
+    }
+}
+
+impl fmt::Display for FaultsSeedsResult {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let n = self.runs.len();
+        write!(f, "{:<24}", "row / seed")?;
+        for seed in self.seeds() {
+            write!(f, " {seed:>8}")?;
+        }
+        writeln!(f, " {:>8} {:>8} {:>6}  passed", "median", "worst", "limit")?;
+        for r in self.rows() {
+            write!(f, "{:<24}", r.name)?;
+            for x in &r.per_seed {
+                write!(f, " {x:>8.3}")?;
+            }
+            writeln!(
+                f,
+                " {:>8.3} {:>8.3} {:>6}  {}/{n} {}",
+                r.median(),
+                r.worst(),
+                r.limit,
+                r.passed_seeds,
+                if r.passed() { "pass" } else { "FAIL" }
             )?;
         }
         Ok(())
@@ -321,6 +517,49 @@ mod tests {
         assert_eq!(holds, [true, false, false, false]);
         let text = results.to_string();
         assert!(text.starts_with("settled                       2.900 (limit     5) pass\n"));
+    }
+
+    /// Over seeds, a row holds when more than half of them pass it; its median and worst
+    /// count a missing figure as the worst, and the JSON keeps every seed's figure.
+    #[test]
+    fn over_seeds_a_row_is_judged_on_the_majority_and_its_median() {
+        let run = |seed: u64, rows: Vec<FaultResult>| FaultsResult {
+            options: FaultsOptions {
+                seed,
+                ..FaultsOptions::default()
+            },
+            ..result(rows)
+        };
+        let seeds = FaultsSeedsResult {
+            runs: vec![
+                run(1, vec![row("a", true, 1.0), row("b", false, 6.0)]),
+                run(2, vec![row("a", false, 7.0), row("b", false, f64::NAN)]),
+                run(3, vec![row("a", true, 2.0), row("b", true, 4.0)]),
+            ],
+        };
+        let rows = seeds.rows();
+        assert_eq!((rows[0].median(), rows[0].worst()), (2.0, 7.0));
+        assert_eq!((rows[1].median(), rows[1].worst()), (6.0, f64::INFINITY));
+        assert_eq!((rows[0].passed(), rows[1].passed()), (true, false));
+        let json = seeds.to_json();
+        assert_eq!(json["seeds"], json!([1, 2, 3]));
+        let b = &json["faults"][1];
+        assert_eq!(b["per_seed"], json!([6.0, null, 4.0]));
+        assert!(b["worst"].is_null());
+        assert_eq!(
+            (b["measured"].as_f64(), b["passed_seeds"].as_u64()),
+            (Some(6.0), Some(1))
+        );
+        let holds: Vec<bool> = seeds.verdicts().iter().map(|v| v.holds()).collect();
+        assert_eq!(holds, [true, false]);
+        assert!(
+            run_seeds(
+                &FaultsOptions::default(),
+                &[],
+                &crate::sim::suite::no_progress
+            )
+            .is_err()
+        );
     }
 
     #[test]
