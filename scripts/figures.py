@@ -378,6 +378,7 @@ FAULTS = {
     "no_magnetometer": "no magnetometer at all, start on the ground",
     "no_magnetometer_inflight": "no magnetometer, switched on at 20 s in flight",
     "inflight_tilt_5s": "switched on at 20 s in flight, with the magnetometer",
+    "mag_norm_disturbance": "field norm x1.3 (direction kept) from 30 to 32 s: a steel structure passed",
 }
 
 

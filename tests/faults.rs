@@ -271,7 +271,7 @@ fn suite() -> Vec<FaultResult> {
 }
 
 /// The rows that fail today (`.ci/run`'s `--known-failures` of the fault suite).
-const KNOWN_FAILURES: [&str; 1] = ["hard_iron"];
+const KNOWN_FAILURES: [&str; 2] = ["hard_iron", "mag_norm_disturbance"];
 
 /// Every row of issue 10 passes on the issue's 60 s runs (whole windows: see
 /// `the_rows_windows_are_the_issue_s`), with the navigator and start of `reproduce --faults`.
@@ -299,6 +299,7 @@ fn every_row_of_the_suite_passes_at_full_scale() {
             ("no_magnetometer", 5.0),
             ("no_magnetometer_inflight", 5.0),
             ("inflight_tilt_5s", 2.5),
+            ("mag_norm_disturbance", 1.2),
         ]
     );
     for r in &results {
@@ -314,8 +315,8 @@ fn every_row_of_the_suite_passes_at_full_scale() {
         .collect();
     assert_eq!(failed, KNOWN_FAILURES, "rows failing: {results:?}");
     // The hard-iron row fails, but a field whose seen offset can turn the heading beyond its
-    // alert limit is not fused: 7.2 times the clean yaw RMSE, 10.9 with that field fused (9.4
-    // and 5.6 before the alignment's 50 ms minimum; seeds 1-5 now 7.2, 10.8, 4.7, 14.2, 14.3,
+    // alert limit is not fused: 6.8 times the clean yaw RMSE, 10.9 with that field fused (9.4
+    // and 5.6 before the alignment's 50 ms minimum; seeds 1-5 now 6.8, 10.8, 4.7, 14.1, 14.1,
     // before 5.6, 10.8, 4.5, 11.3, 14.3: the median 10.8 both).
     let hard_iron = &results[12];
     assert!(hard_iron.measured < 8.0, "{hard_iron:?}");
@@ -334,9 +335,9 @@ type Window = (f64, f64);
 fn windows(case: &FaultCase) -> (Window, Window) {
     let end = case.sim.duration_s;
     let fault = match case.faults[..] {
-        [Fault::GpsOutage { from_s, to_s }] | [Fault::MagRotation { from_s, to_s, .. }] => {
-            (from_s, to_s)
-        }
+        [Fault::GpsOutage { from_s, to_s }]
+        | [Fault::MagRotation { from_s, to_s, .. }]
+        | [Fault::MagScale { from_s, to_s, .. }] => (from_s, to_s),
         [Fault::GpsJump { at_s, .. }]
         | [Fault::ImuFutureSample { at_s, .. }]
         | [Fault::ClockBack { at_s, .. }] => (at_s, at_s),
@@ -402,6 +403,7 @@ fn the_rows_windows_are_the_issue_s() {
             ("no_magnetometer", 60.0, whole, (30.0, 30.0)),
             ("no_magnetometer_inflight", 60.0, (0.0, 20.0), (35.0, 35.0)),
             ("inflight_tilt_5s", 60.0, (0.0, 20.0), (25.0, 25.0)),
+            ("mag_norm_disturbance", 60.0, (30.0, 32.0), (35.0, 60.0)),
         ]
     );
     // A settle row leaves more of the run than its limit: settling late is seen as late.

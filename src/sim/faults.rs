@@ -143,6 +143,17 @@ pub enum Fault {
         /// Rotation about down, rad.
         angle_rad: f64,
     },
+    /// The magnetometer's field multiplied by `factor` in `[from_s, to_s)`: a
+    /// local disturbance along the field (a steel structure passed, a current
+    /// near the sensor) that keeps its direction and changes its norm.
+    MagScale {
+        /// Start, s.
+        from_s: f64,
+        /// End, s.
+        to_s: f64,
+        /// Factor on the field.
+        factor: f64,
+    },
     /// No magnetometer sample until `after_s` after the first fix received.
     MagLate {
         /// Wait after the first fix, s.
@@ -332,6 +343,16 @@ impl FaultySimulation {
                     let r = self.sim.trajectory().rotation(t as f64 * 1e-6);
                     let rz = Rotation3::from_axis_angle(&Vector3::z_axis(), angle_rad);
                     m.field_body = r.transpose() * (rz * (r * m.field_body));
+                }
+                (
+                    Fault::MagScale {
+                        from_s,
+                        to_s,
+                        factor,
+                    },
+                    SimEvent::Mag(m),
+                ) if t >= us(from_s) && t < us(to_s) => {
+                    m.field_body *= factor;
                 }
                 (Fault::MagLate { after_s }, SimEvent::Mag(_))
                     if self
@@ -925,6 +946,18 @@ pub fn fault_suite_in(scenario: Scenario, seed: u64, scale: f64) -> Vec<FaultCas
             Reference::None,
         )
     });
+    rows.push(case(
+        "mag_norm_disturbance",
+        "tilt RMSE after 35 s / clean",
+        1.2,
+        vec![Fault::MagScale {
+            from_s: s(30.0),
+            to_s: s(32.0),
+            factor: 1.3,
+        }],
+        Metric::TiltRmseRatio { from_s: s(35.0) },
+        Reference::Clean,
+    ));
     rows
 }
 

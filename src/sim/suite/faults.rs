@@ -1,4 +1,4 @@
-//! The fault suite: the navigator through the sixteen faults of
+//! The fault suite: the navigator through the eighteen faults of
 //! [`sim::faults::fault_suite`](crate::sim::faults::fault_suite), each row judged by its own
 //! criterion (docs/faults.md explains every row).
 //!

@@ -1269,6 +1269,7 @@ mod tests {
             "no_magnetometer",
             "no_magnetometer_inflight",
             "inflight_tilt_5s",
+            "mag_norm_disturbance",
             "gps_drift_20m",
             "imu_gap_2s",
             "reset_inflight",
