@@ -223,10 +223,17 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// magnetometer from 5 s) a third more yaw error.
     pub(super) fn heading_unknown(&self) -> bool {
         let std = T::lit(HEADING_UNKNOWN_STD_RAD);
-        self.ekf
-            .time_us()
-            .filter(|_| self.aligned_moving && !self.heading_checked && self.ekf.is_initialized())
-            .is_some_and(|t| !self.mag_recent(t) && self.horizon_heading_var() > std * std)
+        self.aligned_moving_without_mag()
+            && !self.heading_checked
+            && self.horizon_heading_var() > std * std
+    }
+
+    /// The horizon filter was aligned in motion, is initialized, and no
+    /// magnetometer update is recent ([`HEADING_STALE_US`]).
+    fn aligned_moving_without_mag(&self) -> bool {
+        self.aligned_moving
+            && self.ekf.is_initialized()
+            && self.ekf.time_us().is_some_and(|t| !self.mag_recent(t))
     }
 
     /// After an alignment made in motion without a recent magnetometer
@@ -237,12 +244,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
     /// velocity's turns, and a fix timed wrong turns the wrong way.
     pub(super) fn attitude_from_gps_withheld(&self) -> bool {
         self.heading_unknown()
-            || (self.aligned_moving
-                && self.delay_std_s() > T::lit(DELAY_KNOWN_STD_S)
-                && self
-                    .ekf
-                    .time_us()
-                    .is_some_and(|t| self.ekf.is_initialized() && !self.mag_recent(t)))
+            || (self.aligned_moving_without_mag() && self.delay_std_s() > T::lit(DELAY_KNOWN_STD_S))
     }
 
     /// A magnetometer update was fused within [`HEADING_STALE_US`] of the
