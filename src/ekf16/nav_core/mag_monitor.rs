@@ -50,7 +50,9 @@
 //! `beta <- min(1, max(beta max(0, 1 - dt / T), beta_k))`, `T` = [`MAG_OFFSET_MEMORY_S`],
 //! `dt` the interval between samples (a decay of time constant `T` at the magnetometer's
 //! rate): an offset fixed to the body shows again each time the vehicle turns, a passing
-//! disturbance is forgotten.
+//! disturbance is forgotten. A held offset that has decayed below the tolerance `k1 s_e` (less
+//! than a whole sweep of the field's direction could show) is set to 0: without that, one
+//! offset seen kept the 3-axis update off for the rest of a flight.
 //!
 //! What the offset does to the levels: the tilt-compensated heading reads the horizontal
 //! field, `|m| cos I` long (`I` the configured inclination), turned by up to
@@ -180,6 +182,10 @@ impl<T: Scalar> MagMonitor<T> {
         let excess = self.residual.abs() - tolerance;
         let decay = (T::one() - s.dt_s.max(T::zero()) / T::lit(MAG_OFFSET_MEMORY_S)).max(T::zero());
         self.offset *= decay;
+        if self.offset < tolerance {
+            // Below what a whole sweep of the field's direction could show: forgotten.
+            self.offset = T::zero();
+        }
         let beyond = excess > T::zero();
         if beyond {
             let sweep = (self.direction - self.learned_direction)
@@ -335,9 +341,14 @@ mod tests {
         assert_eq!(m.heading_factor(k1), T::one());
     }
 
+    /// A held offset decays with its memory and, below the tolerance (0.036 here: a norm
+    /// learned from 1,000 samples), is forgotten.
     fn a_seen_offset_is_forgotten_over_its_memory<T: Scalar>() {
-        let mut m =
-            MagMonitor::<T>::started_at(&Vector3::new(T::one(), T::zero(), T::one()), T::one(), 1);
+        let mut m = MagMonitor::<T>::started_at(
+            &Vector3::new(T::one(), T::zero(), T::one()),
+            T::one(),
+            1000,
+        );
         m.offset = T::lit(0.2);
         let reading = MagReading {
             field_body: Vector3::new(T::lit(0.7), T::zero(), T::lit(0.7)),
@@ -353,8 +364,9 @@ mod tests {
             "{:?}",
             m.offset()
         );
+        // 0.05 * 0.6 = 0.03, below the tolerance: 0, not 0.03.
         let reading = MagReading {
-            dt_s: T::lit(MAG_OFFSET_MEMORY_S),
+            dt_s: T::lit(MAG_OFFSET_MEMORY_S * 0.4),
             ..reading
         };
         m.update(&reading, T::lit(1e-3), T::lit(NOISE), T::lit(3.29));
