@@ -155,7 +155,7 @@ fn imu_faults_change_the_timestamps() {
 }
 
 #[test]
-fn magnetic_faults_turn_and_delay_the_field() {
+fn magnetic_faults_turn_scale_and_delay_the_field() {
     let mags = |faults: &[Fault]| -> Vec<(u64, Vector3<f64>)> {
         events(faults)
             .into_iter()
@@ -179,6 +179,30 @@ fn magnetic_faults_turn_and_delay_the_field() {
         } else {
             assert!(angle < 1e-5, "{angle}");
         }
+    }
+    let scaled = mags(&[Fault::MagScale {
+        from_s: 2.0,
+        to_s: 3.0,
+        factor: 1.3,
+    }]);
+    for (a, b) in clean.iter().zip(&scaled) {
+        let factor = if (2_000_000..3_000_000).contains(&a.0) {
+            1.3
+        } else {
+            1.0
+        };
+        assert!((a.1 * factor - b.1).norm() < 1e-12, "{a:?} {b:?}");
+    }
+    for factor in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let fault = Fault::MagScale {
+            from_s: 2.0,
+            to_s: 3.0,
+            factor,
+        };
+        assert!(
+            FaultySimulation::new(short(3), &[fault]).is_err(),
+            "{factor}"
+        );
     }
     let late = mags(&[Fault::MagLate { after_s: 5.0 }]);
     assert_eq!(late[0].0, 5_100_000);

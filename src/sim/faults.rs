@@ -220,6 +220,9 @@ impl FaultySimulation {
                     }
                     seed = s;
                 }
+                Fault::MagScale { factor, .. } if !(factor.is_finite() && factor > 0.0) => {
+                    return bad("a field factor must be finite and positive");
+                }
                 Fault::ImuRateChange { rate_hz, .. } => {
                     let old = 1e6 / sim.config().sensors.imu_rate_hz;
                     let new = 1e6 / rate_hz;
