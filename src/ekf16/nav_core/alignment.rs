@@ -32,7 +32,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         }
         let gyro =
             self.last_imu.map_or_else(Vector3::zeros, |s| s.gyro_rad_s) - c.initial_gyro_bias_rad_s;
-        let mut x = self.extra_initial;
+        let mut x = self.extras_vector(|e| e.initial);
         x.fixed_rows_mut::<4>(QUAT)
             .copy_from(&q.quaternion().coords_wxyz());
         x.fixed_rows_mut::<3>(POS)
@@ -43,7 +43,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             .copy_from(&c.initial_accel_bias_m_s2);
         x.fixed_rows_mut::<3>(GYRO_BIAS)
             .copy_from(&c.initial_gyro_bias_rad_s);
-        let mut p = SMatrix::<T, N, N>::from_diagonal(&self.extra_variance);
+        let mut p = SMatrix::<T, N, N>::from_diagonal(&self.extras_vector(|e| e.initial_variance));
         p.fixed_view_mut::<4, 4>(QUAT, QUAT)
             .copy_from(&attitude_covariance(
                 &q,

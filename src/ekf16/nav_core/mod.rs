@@ -140,6 +140,21 @@ pub(crate) struct ExtraState<T: Scalar> {
     pub random_walk_intensity: T,
 }
 
+impl<T: Scalar> ExtraState<T> {
+    /// No state: zero value, variance and intensity.
+    const ZERO: Self = Self {
+        initial: T::ZERO,
+        initial_variance: T::ZERO,
+        random_walk_intensity: T::ZERO,
+    };
+}
+
+/// Most states a core carries after the 16 navigation states (the augmented EKF's delay):
+/// their initial values, variances and intensities are kept in a fixed array of this length,
+/// 12 B in `f32`, where three `N`-long vectors zero over the navigation states took 192 B in
+/// the 16-state filter.
+pub(crate) const MAX_EXTRA_STATES: usize = 1;
+
 /// Mean of the last samples of a vector: a running mean up to `window`
 /// samples, then an exponential mean of weight `1 / window`. No storage
 /// beyond the mean.
@@ -456,9 +471,7 @@ pub(crate) struct NavCore<T: Scalar, const N: usize> {
     x: SVector<T, N>,
     p: SMatrix<T, N, N>,
     /// Extra states (indices >= 16): initial values, variances, intensities.
-    extra_initial: SVector<T, N>,
-    extra_variance: SVector<T, N>,
-    extra_intensity: SVector<T, N>,
+    extras: [ExtraState<T>; MAX_EXTRA_STATES],
     /// What the white-noise intensities of the next predictions are multiplied by, read as
     /// at least 1 (0 in `BLANK`): set by the navigator from its horizon's read period
     /// ([`set_imu_noise_scale`](Self::set_imu_noise_scale)).
@@ -546,8 +559,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     pub(crate) const BLANK: Self = {
         const {
             assert!(
-                N >= NAV_STATES,
-                "a navigation core has at least the 16 navigation states"
+                N >= NAV_STATES && N - NAV_STATES <= MAX_EXTRA_STATES,
+                "a navigation core has the 16 navigation states and at most MAX_EXTRA_STATES more"
             )
         };
         Self {
@@ -556,9 +569,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             mag_offset_refusal: T::ZERO,
             x: zeros_const(),
             p: zeros_const(),
-            extra_initial: zeros_const(),
-            extra_variance: zeros_const(),
-            extra_intensity: zeros_const(),
+            extras: [ExtraState::ZERO; MAX_EXTRA_STATES],
             imu_noise_scale: T::ZERO,
             initialized: false,
             imu_clock_us: None,
@@ -651,13 +662,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         self.x.fill(T::zero());
         self.p.fill(T::zero());
-        self.extra_initial.fill(T::zero());
-        self.extra_variance.fill(T::zero());
-        self.extra_intensity.fill(T::zero());
-        for (i, e) in extras.iter().enumerate() {
-            self.extra_initial[NAV_STATES + i] = e.initial;
-            self.extra_variance[NAV_STATES + i] = e.initial_variance;
-            self.extra_intensity[NAV_STATES + i] = e.random_walk_intensity;
+        self.extras = [ExtraState::ZERO; MAX_EXTRA_STATES];
+        for (slot, e) in self.extras.iter_mut().zip(extras) {
+            *slot = *e;
         }
         self.initialized = false;
         self.imu_clock_us = None;
@@ -843,8 +850,25 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         if self.initialized {
             (self.x[index], self.p[(index, index)])
         } else {
-            (self.extra_initial[index], self.extra_variance[index])
+            let e = &self.extras[index - NAV_STATES];
+            (e.initial, e.initial_variance)
         }
+    }
+
+    /// One of the extra states' figures as an `N`-vector, zero over the navigation states
+    /// (`figure` picks it from an [`ExtraState`]).
+    pub(super) fn extras_vector(&self, figure: impl Fn(&ExtraState<T>) -> T) -> SVector<T, N> {
+        let mut v = SVector::<T, N>::zeros();
+        for (i, e) in self.extras.iter().enumerate().take(N - NAV_STATES) {
+            v[NAV_STATES + i] = figure(e);
+        }
+        v
+    }
+
+    /// The extra states' random-walk intensities as an `N`-vector (zero over the navigation
+    /// states), as the process noise takes them.
+    pub(super) fn extra_intensity(&self) -> SVector<T, N> {
+        self.extras_vector(|e| e.random_walk_intensity)
     }
 
     /// Sets extra state `index` (`16..N`) to `value` with variance
@@ -854,8 +878,9 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
     pub(crate) fn reset_extra_state(&mut self, index: usize, value: T, variance: T) {
         debug_assert!((NAV_STATES..N).contains(&index));
         if !self.initialized {
-            self.extra_initial[index] = value;
-            self.extra_variance[index] = variance;
+            let e = &mut self.extras[index - NAV_STATES];
+            e.initial = value;
+            e.initial_variance = variance;
             return;
         }
         self.x[index] = value;

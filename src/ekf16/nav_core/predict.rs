@@ -183,7 +183,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
                 accel,
                 dt,
                 &self.config,
-                &self.extra_intensity,
+                &self.extra_intensity(),
             );
             let mut x = self.x;
             self.carry_over_gap(&mut x, &mut p, dt);
@@ -228,7 +228,7 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
             jacobian_accel,
             dt,
             &self.config,
-            &self.extra_intensity,
+            &self.extra_intensity(),
             self.imu_noise_scale,
         );
         let mut x = self.x;
