@@ -13,12 +13,16 @@
 //! biases in body FRD:
 //!
 //! ```text
-//! x = [phi, dp, dv, db_a, db_g]
+//! x = [phi, dp, dv, db_a, db_g, b_m]
 //! phi' = -R db_g + R n_g
 //! dp'  = dv
 //! dv'  = -[f_n]x phi - R db_a + R n_a
-//! db_a' = w_a,  db_g' = w_g
+//! db_a' = w_a,  db_g' = w_g,  b_m' = 0
 //! ```
+//!
+//! `b_m` is the magnetometer's body-field (hard-iron) offset in units of the field: a constant
+//! with the prior [`BoundConfig::mag_offset_std`] per axis (0, the default: known, and the
+//! bound is the 15-state one).
 //!
 //! `R` is the true body-to-NED rotation and `f_n = a - [0, 0, g]` the true
 //! specific force in NED, both at the start of each IMU step: the Jacobians
@@ -41,7 +45,7 @@
 //! - GPS position and velocity, `H = [0 I 0 0 0; 0 0 I 0 0]`, fused at the
 //!   instant the fix describes (`t - tau`, the true delay);
 //! - the magnetometer ([`BoundMagnetometer`]): by default the whole field,
-//!   `m_b = R^T m_n + n_m`, `H = [R^T [m_n]x, 0...]`, variance `s_m²` per
+//!   `m_b = R^T m_n + b_m + n_m`, `H = [R^T [m_n]x, 0..., I3]`, variance `s_m²` per
 //!   axis: two degrees of attitude, tilt included. The crate's filters take
 //!   one degree from it, the heading of the field de-rotated with their
 //!   estimated tilt, `H = [-tan I cos D, -tan I sin D, 1, 0...]`, variance
@@ -78,8 +82,10 @@ use super::{STANDARD_GRAVITY, SensorConfig, SimConfig, SimEvent};
 use crate::Ekf16Config;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
-/// Size of the error state.
-const N: usize = 15;
+/// Size of the error state: the 15 navigation errors, then the magnetometer's body-field offset.
+const N: usize = 18;
+/// Size of the navigation part of the error state (the part the motion propagates).
+const NAV: usize = 15;
 /// Index of the attitude error.
 const PHI: usize = 0;
 /// Index of the position error.
@@ -90,8 +96,12 @@ const VEL: usize = 6;
 const BA: usize = 9;
 /// Index of the gyro bias error.
 const BG: usize = 12;
+/// Index of the magnetometer's body-field (hard-iron) offset, unit field, body FRD.
+const OFF: usize = 15;
 
 type Cov = SMatrix<f64, N, N>;
+/// The transition of the navigation errors (the offset is constant).
+type NavMatrix = SMatrix<f64, NAV, NAV>;
 
 /// What the bound's filter takes from the magnetometer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -138,6 +148,10 @@ pub struct BoundConfig {
     pub accel_bias_std_m_s2: f64,
     /// Gyro bias, per axis, rad/s.
     pub gyro_bias_std_rad_s: f64,
+    /// The magnetometer's body-field (hard-iron) offset, per axis, in units of the field (0:
+    /// known, as calibrated). Above 0 only with [`BoundMagnetometer::Field`]: the heading models
+    /// have no offset term.
+    pub mag_offset_std: f64,
 }
 
 impl BoundConfig {
@@ -172,6 +186,7 @@ impl BoundConfig {
             velocity_std_m_s: filter.initial_velocity_std_m_s,
             accel_bias_std_m_s2: filter.initial_accel_bias_std_m_s2,
             gyro_bias_std_rad_s: filter.initial_gyro_bias_std_rad_s,
+            mag_offset_std: 0.0,
         }
     }
 
@@ -184,6 +199,7 @@ impl BoundConfig {
             ("velocity_std_m_s", self.velocity_std_m_s),
             ("accel_bias_std_m_s2", self.accel_bias_std_m_s2),
             ("gyro_bias_std_rad_s", self.gyro_bias_std_rad_s),
+            ("mag_offset_std", self.mag_offset_std),
             (
                 "mag_tilt_alignment_std_rad",
                 self.mag_tilt_alignment_std_rad,
@@ -197,6 +213,15 @@ impl BoundConfig {
                     bound: crate::error::Bound::NotNegative,
                 });
             }
+        }
+        if self.mag_offset_std > 0.0 && self.magnetometer != BoundMagnetometer::Field {
+            return Err(crate::Error::InvalidConfig {
+                field: "mag_offset_std".into(),
+                value: Some(self.mag_offset_std),
+                bound: crate::error::Bound::Rule(
+                    "an unknown magnetometer offset needs the whole-field magnetometer model",
+                ),
+            });
         }
         Ok(())
     }
@@ -309,7 +334,7 @@ impl Model {
         let (dt2, dt3) = (dt * dt / 2.0, dt.powi(3) / 6.0);
         // Phi = I + F dt + F² dt²/2 + F³ dt³/6, written by blocks (F is
         // nilpotent: F² and F³ have the few blocks below).
-        let mut phi = Cov::identity();
+        let mut phi = NavMatrix::identity();
         phi.fixed_view_mut::<3, 3>(PHI, BG).copy_from(&(-r * dt));
         phi.fixed_view_mut::<3, 3>(POS, VEL)
             .copy_from(&(Matrix3::identity() * dt));
@@ -320,7 +345,7 @@ impl Model {
         phi.fixed_view_mut::<3, 3>(VEL, BA).copy_from(&(-r * dt));
         phi.fixed_view_mut::<3, 3>(VEL, BG).copy_from(&(fxr * dt2));
         // Gamma = (I dt + F dt²/2 + F² dt³/6) G: gyro noise, then accelerometer.
-        let mut gamma = SMatrix::<f64, N, 6>::zeros();
+        let mut gamma = SMatrix::<f64, NAV, 6>::zeros();
         gamma.fixed_view_mut::<3, 3>(PHI, 0).copy_from(&(r * dt));
         gamma
             .fixed_view_mut::<3, 3>(VEL, 0)
@@ -334,7 +359,16 @@ impl Model {
         noise.fixed_rows_mut::<3>(0).fill(self.var_g);
         noise.fixed_rows_mut::<3>(3).fill(self.var_a);
         let scaled = gamma * SMatrix::<f64, 6, 6>::from_diagonal(&noise);
-        *p = phi * *p * phi.transpose() + scaled * gamma.transpose();
+        // The offset is constant: its block stays, its correlations move with the navigation
+        // errors.
+        let nav = p.fixed_view::<NAV, NAV>(0, 0).into_owned();
+        let cross = p.fixed_view::<NAV, 3>(0, OFF).into_owned();
+        p.fixed_view_mut::<NAV, NAV>(0, 0)
+            .copy_from(&(phi * nav * phi.transpose() + scaled * gamma.transpose()));
+        let cross = phi * cross;
+        p.fixed_view_mut::<NAV, 3>(0, OFF).copy_from(&cross);
+        p.fixed_view_mut::<3, NAV>(OFF, 0)
+            .copy_from(&cross.transpose());
         for i in 0..3 {
             p[(BA + i, BA + i)] += self.walk_a * dt;
             p[(BG + i, BG + i)] += self.walk_g * dt;
@@ -366,13 +400,14 @@ impl Model {
         }
     }
 
-    /// Fuses the whole field: `H = R^T [m_n]x` on the attitude error.
+    /// Fuses the whole field: `H = R^T [m_n]x` on the attitude error, `I3` on the offset.
     fn fuse_field(&self, p: &mut Cov, step: &Step) {
         let h_att = step.rotation.transpose() * skew(&self.field_ned);
         let p_att = p.fixed_rows::<3>(PHI).into_owned();
-        // H P = h_att P[PHI rows]; S = H P H^T + R.
-        let hp = h_att * p_att;
-        let mut s = hp.fixed_columns::<3>(PHI) * h_att.transpose();
+        let p_off = p.fixed_rows::<3>(OFF).into_owned();
+        // H P = h_att P[PHI rows] + P[OFF rows]; S = H P H^T + R.
+        let hp = h_att * p_att + p_off;
+        let mut s = hp.fixed_columns::<3>(PHI) * h_att.transpose() + hp.fixed_columns::<3>(OFF);
         for i in 0..3 {
             s[(i, i)] += self.var_field;
         }
@@ -563,7 +598,8 @@ pub fn trajectory_bound(
     .chain((0..3).map(|i| (POS + i, b.position_std_m)))
     .chain((0..3).map(|i| (VEL + i, b.velocity_std_m_s)))
     .chain((0..3).map(|i| (BA + i, b.accel_bias_std_m_s2)))
-    .chain((0..3).map(|i| (BG + i, b.gyro_bias_std_rad_s)));
+    .chain((0..3).map(|i| (BG + i, b.gyro_bias_std_rad_s)))
+    .chain((0..3).map(|i| (OFF + i, b.mag_offset_std)));
     for (i, std) in prior {
         p0[(i, i)] = std * std;
     }
