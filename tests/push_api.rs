@@ -378,6 +378,7 @@ fn ekf_sum(c: &FilterRefusals) -> u64 {
             gps_position_inconsistent,
             covariance_repairs,
             mag_field_offset,
+            mag_field_offset_cleared,
         }
     )
 }

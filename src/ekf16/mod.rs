@@ -228,6 +228,10 @@ pub struct FilterRefusals {
     /// field-offset monitor: a hard-iron offset or a disturbance seen; the heading and tilt
     /// levels raised by it, no 3-axis update while it lasts).
     pub mag_field_offset: u32,
+    /// Field offsets the monitor held and dropped because the field, seen again from the
+    /// attitude it showed at, no longer showed it (a disturbance that passed, not an offset
+    /// fixed to the body; docs/integrity.md).
+    pub mag_field_offset_cleared: u32,
 }
 
 impl FilterRefusals {
@@ -254,6 +258,7 @@ impl FilterRefusals {
         gps_position_inconsistent: 0,
         covariance_repairs: 0,
         mag_field_offset: 0,
+        mag_field_offset_cleared: 0,
     };
 
     /// Field-wise sum (saturating): the counters of a filter that replaced
@@ -299,6 +304,9 @@ impl FilterRefusals {
                 .covariance_repairs
                 .saturating_add(other.covariance_repairs),
             mag_field_offset: self.mag_field_offset.saturating_add(other.mag_field_offset),
+            mag_field_offset_cleared: self
+                .mag_field_offset_cleared
+                .saturating_add(other.mag_field_offset_cleared),
         }
     }
 }

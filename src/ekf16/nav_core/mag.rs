@@ -84,7 +84,8 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
 
     /// The magnetometer's integrity monitor with the sample just fused (or not) in `mode`,
     /// `dt_us` after the previous one (`mag_monitor.rs`): a norm beyond its tolerance is
-    /// counted in `FilterRefusals::mag_field_offset`.
+    /// counted in `FilterRefusals::mag_field_offset`, a held offset refuted in
+    /// `FilterRefusals::mag_field_offset_cleared`.
     fn monitor_mag(&mut self, field_body: &Vector3<T>, mode: MagMode, dt_us: u64) {
         let c = &self.config;
         let (gate, dof) = if mode == MagMode::ThreeAxis {
@@ -103,8 +104,12 @@ impl<T: Scalar, const N: usize> NavCore<T, N> {
         };
         let (k1, _, _) = crate::integrity::protection_factors(c.integrity.risk);
         let (w, r) = (c.mag_field_learning_rate, c.mag_noise_variance);
-        if self.mag_monitor.update(&reading, w, r, k1) {
+        let update = self.mag_monitor.update(&reading, w, r, k1);
+        if update.beyond {
             bump(&mut self.refusals.mag_field_offset);
+        }
+        if update.cleared {
+            bump(&mut self.refusals.mag_field_offset_cleared);
         }
     }
 

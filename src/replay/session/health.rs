@@ -53,7 +53,7 @@ impl HealthSummary {
             gated: non_zero(fields!(c; gps_position_rejected, gps_velocity_rejected,
                 mag_rejected, mag_disturbed, gps_position_inconsistent, mag_field_offset)),
             resets: non_zero(fields!(c; gps_position_resets, gps_velocity_resets,
-                gps_divergence_resets)),
+                gps_divergence_resets, mag_field_offset_cleared)),
             last_reset: last.map(|r| {
                 format!(
                     "{:?} block, {:?}, at {:.1} s",
