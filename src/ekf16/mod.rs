@@ -228,9 +228,9 @@ pub struct FilterRefusals {
     /// field-offset monitor: a hard-iron offset or a disturbance seen; the heading and tilt
     /// levels raised by it, no 3-axis update while it lasts).
     pub mag_field_offset: u32,
-    /// Field offsets the monitor held and dropped because the field, seen again from the
-    /// attitude it showed at, no longer showed it (a disturbance that passed, not an offset
-    /// fixed to the body; docs/integrity.md).
+    /// Field offsets the monitor held and dropped because the field's norm, once back within
+    /// its tolerance, had changed by more than an offset fixed to the body allows for the turn
+    /// since the offset showed (a disturbance that passed; docs/integrity.md).
     pub mag_field_offset_cleared: u32,
 }
 

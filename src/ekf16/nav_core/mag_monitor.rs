@@ -124,7 +124,8 @@ pub(crate) struct MagMonitor<T: Scalar> {
 pub(crate) struct MagMonitorUpdate {
     /// The norm residual was beyond its tolerance.
     pub beyond: bool,
-    /// A held offset was refuted by the field seen from where it was seen, and set to 0.
+    /// A held offset was refuted (the norm changed by more than a body-fixed offset allows for
+    /// the turn since it showed) and set to 0.
     pub cleared: bool,
 }
 
@@ -324,8 +325,8 @@ mod tests {
     /// Feeds 100 Hz samples for `seconds` of a unit field at the simulator's inclination seen
     /// by a vehicle yawing +-20 deg and pitching +-15 deg (periods 45 s and 12 s), plus the
     /// body offset `offset`, the field scaled by `scale.2` from `scale.0` to `scale.1` s; every
-    /// sample with NIS per dof `nis`, fused while the held offset is at most [`REFUSAL`]. Returns the monitor, the samples beyond the
-    /// tolerance and the held offsets cleared.
+    /// sample with NIS per dof `nis`, fused while the held offset is at most [`REFUSAL`].
+    /// Returns the monitor, the samples beyond the tolerance and the held offsets cleared.
     fn run_scaled<T: Scalar>(
         seconds: f64,
         offset: [f64; 3],
