@@ -125,8 +125,9 @@ fn trace_agrees_with_the_suite() {
     assert_eq!(summary.rows, 61);
     assert_eq!(lines.len(), 62);
     let columns = lines[0].split(',').count();
-    // 8 + the GFA's sigma and the innovation window (3), 5 per axis, 2 compared.
-    assert_eq!(columns, 11 + 3 * 5 + 2);
+    // 9 (delay_valid the ninth) + the GFA's sigma and the innovation window (3), 5 per axis,
+    // 2 compared.
+    assert_eq!(columns, 12 + 3 * 5 + 2);
     assert!(lines.iter().all(|l| l.split(',').count() == columns));
     assert!(lines[0].ends_with("oracle_accel_estimate_s,true_accel_estimate_s"));
     let names: Vec<&str> = summary.rmse_ms.iter().map(|(n, _)| *n).collect();
@@ -154,6 +155,23 @@ fn trace_agrees_with_the_suite() {
     }
     assert!((0.0..=1.0).contains(&summary.sigma_coverage));
     assert!((summary.sigma_coverage - inside / n).abs() < 0.05);
+    // The points with delay_valid (10 ms spacing) agree with the CSV's delay_valid column
+    // (1 s spacing), and so does their share beyond 3 sigma (none on this run).
+    let (mut valid, mut far) = (0usize, 0usize);
+    for line in lines[1..].iter().map(|l| l.split(',').collect::<Vec<_>>()) {
+        if line[7] == "1" {
+            let value = |i: usize| line[i].parse::<f64>().expect("a number");
+            valid += 1;
+            far += usize::from(value(4).abs() * 1e-3 > 3.0 * value(3));
+        }
+    }
+    let (suite_far, suite_valid) = summary.valid_but_far;
+    assert!(valid > 30, "{valid}");
+    assert!(
+        suite_valid.abs_diff(100 * valid) <= 100,
+        "{suite_valid} {valid}"
+    );
+    assert_eq!((suite_far, far), (0, 0));
     let suite = run(&one_seed(2, &["cold_start_high"], tuning), &no_progress)
         .expect("a known row")
         .rows[0]

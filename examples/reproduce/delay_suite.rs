@@ -212,6 +212,10 @@ pub fn trace(args: &Args) -> Result<(), Box<dyn Error>> {
         "{row} seed {seed}: navigator error within its reported 1-sigma from 20 s: {:.3} of the time",
         summary.sigma_coverage
     );
+    let (far, valid) = summary.valid_but_far;
+    eprintln!(
+        "{row} seed {seed}: delay_valid with |error| > 3 sigma: {far} of {valid} points (10 ms apart, from the start)"
+    );
     eprintln!("wrote {} rows to {}", summary.rows, path.display());
     Ok(())
 }

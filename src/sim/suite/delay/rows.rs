@@ -70,6 +70,10 @@ pub(super) struct PointHealth {
     pub updated: bool,
     /// The loop's status is `Locked`.
     pub locked: bool,
+    /// `Health::delay`'s delay and standard deviation, s: what `valid` vouches for (the
+    /// navigator's estimate has no delay before it aligns, its health has).
+    pub delay_s: f64,
+    pub std_s: f64,
 }
 
 impl DelayTrace {
@@ -117,15 +121,15 @@ impl DelayTrace {
     }
 
     /// Points with a valid delay ([`PointHealth::valid`]) whose error exceeds three sigma, as
-    /// (far, valid).
+    /// (far, valid): the health's own delay and sigma against the truth.
     pub fn valid_but_far(&self) -> (usize, usize) {
         self.health
             .iter()
-            .zip(self.errors_from(0.0))
+            .zip(&self.truth_s)
             .filter(|(h, _)| h.valid)
-            .fold((0, 0), |(far, n), (_, (_, e, s))| {
+            .fold((0, 0), |(far, n), (h, truth)| {
                 // A NaN error or sigma counts as far.
-                let close = e.abs() <= 3.0 * s;
+                let close = (h.delay_s - truth).abs() <= 3.0 * h.std_s;
                 (far + usize::from(!close), n + 1)
             })
     }
@@ -384,6 +388,8 @@ fn row_traces(run: &str, seeds: &[u64], options: &DelayOptions) -> Option<Vec<De
                 valid: h.delay_valid,
                 updated: h.delay.valid_updates > 0,
                 locked: h.delay.status.is_some_and(|s| s.is_locked()),
+                delay_s: h.delay.delay_s,
+                std_s: h.delay.delay_std_s,
             })
         }))
     })

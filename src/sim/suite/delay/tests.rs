@@ -131,6 +131,28 @@ fn coverage_counts_the_errors_within_their_sigma() {
 }
 
 #[test]
+fn valid_but_far_judges_the_delay_the_health_vouches_for() {
+    use super::rows::PointHealth;
+    // The navigator's estimate has no delay (NaN) before 1 s; its health has one all along:
+    // 10 ms off with a 5 ms sigma (within 3 sigma) before 30 s, 20 ms off after (beyond).
+    // Valid from 0.5 s to 40 s.
+    let mut t = delay_trace(|t| (if t < 1.0 { f64::NAN } else { 0.0 }, 0.005));
+    t.health = t
+        .t_s
+        .iter()
+        .map(|&s| PointHealth {
+            valid: (0.5..40.0).contains(&s),
+            delay_s: 0.25 + if s < 30.0 { 0.01 } else { 0.02 },
+            std_s: 0.005,
+            ..PointHealth::default()
+        })
+        .collect();
+    let (far, valid) = t.valid_but_far();
+    assert_eq!(valid, 3950);
+    assert_eq!(far, 1000);
+}
+
+#[test]
 fn a_row_passes_only_on_a_finite_figure_within_its_limit() {
     assert!(!row(None, Limit::Max(1e9)).passed());
     assert!(!row(Some(f64::NAN), Limit::Max(1e9)).passed());

@@ -157,6 +157,10 @@ pub struct TraceSummary {
     /// Fraction of the navigator's points from 20 s (10 ms spacing) whose
     /// error is within its reported 1-sigma.
     pub sigma_coverage: f64,
+    /// The navigator's points (10 ms spacing, from the start) with `delay_valid` whose
+    /// health delay is more than 3 sigma from the truth, and the points with
+    /// `delay_valid`: this run's share of the suite's `valid_means_close`.
+    pub valid_but_far: (usize, usize),
 }
 
 /// Squared-error sum and count from [`SCORE_FROM_S`] of one estimate.
@@ -234,7 +238,7 @@ impl Comparison {
 fn write_header(out: &mut impl Write, compare: bool) -> std::io::Result<()> {
     write!(
         out,
-        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,gfa_std_s,innovation_estimate_s,innovation_std_s,update_t_s"
+        "t_s,truth_s,estimate_s,sigma_s,error_ms,rate_ms_per_s,status,delay_valid,gfa_std_s,innovation_estimate_s,innovation_std_s,update_t_s"
     )?;
     for axis in AXIS_NAMES {
         write!(
@@ -282,7 +286,7 @@ fn write_loop_state(
 
 /// Runs the `proposed` navigator of the row `options.row` on `options.seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's drift-rate estimate
-/// and status, the gain fusion's own sigma, the last innovation window (estimate and std, when
+/// and status, `Health::delay_valid`, the gain fusion's own sigma, the last innovation window (estimate and std, when
 /// the observation is on), and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`. Delays are
 /// relative to the raw IMU (the loop's values plus the accelerometer whitening's group delay),
@@ -319,6 +323,7 @@ pub fn write_trace(
     let mut rows = 0;
     let mut scores = [Score::default(); 3];
     let mut covered = (0usize, 0usize);
+    let mut valid_but_far = (0usize, 0usize);
     for event in &events {
         feed(&mut nav, event);
         if let Some(c) = &mut comparison {
@@ -341,6 +346,12 @@ pub fn write_trace(
             covered.0 += usize::from((estimate_s - truth_s).abs() <= nav.delay_std_s());
             covered.1 += 1;
         }
+        let health = nav.health();
+        if health.delay_valid {
+            let far = (health.delay.delay_s - truth_s).abs() > 3.0 * health.delay.delay_std_s;
+            valid_but_far.0 += usize::from(far);
+            valid_but_far.1 += 1;
+        }
         for (score, other) in scores[1..].iter_mut().zip(others.iter().flatten()) {
             score.add(t_s, other - truth_s);
         }
@@ -349,11 +360,12 @@ pub fn write_trace(
         }
         write!(
             out,
-            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{:.4},{}",
+            "{t_s:.1},{truth_s:.6},{estimate_s:.6},{:.6},{:.3},{:.4},{},{}",
             nav.delay_std_s(),
             (estimate_s - truth_s) * 1e3,
             nav.delay_loop().delay_rate() * 1e3,
             status_name(nav.delay_loop().status()),
+            u8::from(health.delay_valid),
         )?;
         write_loop_state(out, &nav, group_delay_s, truth_s)?;
         if let Some([oracle_s, true_s]) = others {
@@ -369,6 +381,7 @@ pub fn write_trace(
     Ok(Some(TraceSummary {
         information_bound_ms,
         sigma_coverage: covered.0 as f64 / covered.1.max(1) as f64,
+        valid_but_far,
         rows,
         rmse_ms: names
             .into_iter()
