@@ -65,6 +65,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         rate_interval_us: 0,
         rate_votes: 0,
         gps_rate_changes: 0,
+        outlier_windows: 0,
         moving_updates: [0; AXES],
         configured: false,
     };
@@ -129,6 +130,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.rate_interval_us = 0;
         self.rate_votes = 0;
         self.gps_rate_changes = 0;
+        self.outlier_windows = 0;
         self.moving_updates = [0; AXES];
         self.configured = true;
         Ok(())
@@ -138,6 +140,13 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
     /// it runs for is its [`config`](Self::config)'s `gps_rate_hz`.
     pub fn gps_rate_changes(&self) -> u32 {
         self.gps_rate_changes.into()
+    }
+
+    /// Valid axes left out as outliers since the loop was configured: once locked, a window
+    /// beyond [`OUTLIER_SIGMA`](super::OUTLIER_SIGMA) standard deviations of the estimate is
+    /// not fused (one count per axis and update).
+    pub fn outlier_windows(&self) -> u32 {
+        self.outlier_windows
     }
 
     /// Follows the GPS rate ([`DelayLoopConfig::follow_gps_rate`]) on a fix received at `t_us`:
@@ -185,6 +194,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
             return;
         }
         let (previous, restarts, changes) = (self.config, self.restarts, self.gps_rate_changes);
+        let outliers = self.outlier_windows;
         let locked = self.locked;
         if self.configure(adapted).is_err() {
             // Cannot fail after the checks above; the previous configuration ran before.
@@ -192,6 +202,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         }
         self.locked = locked;
         self.restarts = restarts;
+        self.outlier_windows = outliers;
         self.gps_rate_changes = changes.saturating_add(1);
     }
 
@@ -491,6 +502,7 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         let r_s2 = r_buffer_s2.map(|r| r * buffer_s / dt_s);
         self.match_innovations(dt_s, q_s2, &z, &valid, &r_buffer_s2);
         let reacquired = !self.following && self.reacquire(t_us, &z, &valid, &r_buffer_s2);
+        self.refuse_outliers(&z, &mut valid, &r_buffer_s2);
         let gains = if self.following {
             self.follow(t_us, &z, &valid, &r_buffer_s2)
         } else {

@@ -112,6 +112,9 @@ pub struct DelayHealth<T: Scalar> {
     pub last_valid_axes: Option<[bool; 3]>,
     /// Loop updates with at least one valid axis so far.
     pub valid_updates: u32,
+    /// Valid axes the loop left out as outliers once locked
+    /// ([`DelayLoop::outlier_windows`](crate::delay::DelayLoop::outlier_windows)).
+    pub outlier_windows: u32,
     /// The delay loop's own status (acquiring, locked, waiting for motion,
     /// below or above its range); `None` in fixed mode.
     pub status: Option<DelayStatus<T>>,
@@ -208,6 +211,7 @@ impl<T: Scalar, const HIST: usize> DelayCompensatedNav<T, HIST> {
                 delay_std_s: self.delay_std_s(),
                 last_valid_axes: self.last_update.get().map(|u| u.axes.map(|a| a.valid)),
                 valid_updates: self.valid_delay_updates,
+                outlier_windows: self.delay_loop.outlier_windows(),
                 status: estimated.then(|| self.delay_loop.status()),
             },
             mag: self.ekf.mag_modes(),

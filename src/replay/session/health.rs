@@ -108,6 +108,11 @@ impl HealthSummary {
         summary.resets = prefixed("nav", non_zero(gaps))
             .chain(prefixed("horizon", summary.resets))
             .collect();
+        let outliers = vec![(
+            "outlier_windows".to_string(),
+            u64::from(h.delay.outlier_windows),
+        )];
+        summary.gated.extend(prefixed("delay", non_zero(outliers)));
         summary.alignment = Some(format!("{:?}", h.alignment));
         summary.last_reset = h.last_reset.map(|r| {
             let at = r
