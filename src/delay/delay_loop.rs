@@ -142,9 +142,9 @@ impl<T: Scalar, const BUF: usize, const LAGS: usize, const HIST: usize>
         self.gps_rate_changes.into()
     }
 
-    /// Valid axes left out as outliers since the loop was configured: once locked, a window
-    /// beyond [`OUTLIER_SIGMA`](super::OUTLIER_SIGMA) standard deviations of the estimate is
-    /// not fused (one count per axis and update).
+    /// Valid axes left out as outliers since the loop was configured: on the fix-interval path
+    /// and once locked, a window beyond [`OUTLIER_SIGMA`](super::OUTLIER_SIGMA) standard
+    /// deviations of the estimate is not fused (one count per axis and update).
     pub fn outlier_windows(&self) -> u32 {
         self.outlier_windows
     }

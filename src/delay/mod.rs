@@ -66,7 +66,7 @@
 //! | `mod.rs` | the [`DelayLoop`]'s state; [`SensorDelays`] (eq. 15) |
 //! | `config.rs` | [`DelayLoopConfig`]: settings, defaults, validation, grid sizes, the low-GPS-rate adaptation |
 //! | `delay_loop.rs` | the loop's data path: samples in, one measured and fused window per fix out |
-//! | `tracking.rs` | control: a lock followed, re-acquired after a sustained disagreement, the range's edges watched, disagreeing axes and, once locked, outlying windows left out |
+//! | `tracking.rs` | control: a lock followed, re-acquired after a sustained disagreement, the range's edges watched, disagreeing axes and (below 3 Hz, once locked) outlying windows left out |
 //! | `sigma.rs` | the reported standard deviation and the innovation windows as a second observation |
 //! | `status.rs` | [`DelayStatus`] and each update's record ([`DelayUpdate`]) |
 //! | `grid.rs`, `matched.rs` | both streams on the correlation grid; fix intervals matched for slow GPS |
@@ -260,7 +260,7 @@ pub struct DelayLoop<T: Scalar, const BUF: usize, const LAGS: usize, const HIST:
     rate_votes: u8,
     /// Times the loop followed a new GPS rate.
     gps_rate_changes: u16,
-    /// Valid axes left out as outliers once locked ([`OUTLIER_SIGMA`]).
+    /// Valid axes left out as outliers on the fix-interval path once locked ([`OUTLIER_SIGMA`]).
     outlier_windows: u32,
     /// Updates in a row each axis moved at least [`SUSTAINED_MOTION_SHARE`] of the motion
     /// threshold while below it (up to 255; updates above the threshold are not counted).

@@ -1,7 +1,7 @@
 //! The control of the loop: a lock followed when it drifts, re-acquired
 //! when every axis disagrees, the range's edges watched; axes that disagree
-//! with the best measured one left out, and, once locked, windows far
-//! outside the estimate's spread.
+//! with the best measured one left out, and, below 3 Hz once locked, windows
+//! far outside the estimate's spread.
 
 use super::sigma::BiasWatch;
 use super::{AXES, AxisPeak, DelayLoop};

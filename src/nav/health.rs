@@ -112,7 +112,7 @@ pub struct DelayHealth<T: Scalar> {
     pub last_valid_axes: Option<[bool; 3]>,
     /// Loop updates with at least one valid axis so far.
     pub valid_updates: u32,
-    /// Valid axes the loop left out as outliers once locked
+    /// Valid axes the loop left out as outliers (below 3 Hz, once locked)
     /// ([`DelayLoop::outlier_windows`](crate::delay::DelayLoop::outlier_windows)).
     pub outlier_windows: u32,
     /// The delay loop's own status (acquiring, locked, waiting for motion,
