@@ -128,9 +128,8 @@ impl DelayTrace {
             .zip(&self.truth_s)
             .filter(|(h, _)| h.valid)
             .fold((0, 0), |(far, n), (h, truth)| {
-                // A NaN error or sigma counts as far.
-                let close = (h.delay_s - truth).abs() <= 3.0 * h.std_s;
-                (far + usize::from(!close), n + 1)
+                let far_point = beyond_three_sigma(h.delay_s, h.std_s, *truth);
+                (far + usize::from(far_point), n + 1)
             })
     }
 
@@ -152,6 +151,13 @@ impl DelayTrace {
                 (inside + usize::from(e.abs() <= s), n + 1)
             })
     }
+}
+
+/// Whether a delay is more than 3 sigma from the truth (s); a NaN delay or sigma counts as
+/// beyond: `valid_means_close`'s test of one point.
+pub(super) fn beyond_three_sigma(delay_s: f64, std_s: f64, truth_s: f64) -> bool {
+    let error = (delay_s - truth_s).abs();
+    error.is_nan() || std_s.is_nan() || error > 3.0 * std_s
 }
 
 /// Feeds one event to an estimator (refusals are its business).

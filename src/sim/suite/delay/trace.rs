@@ -1,8 +1,8 @@
 //! One row's run on one seed, per second as CSV: what a delay figure is made of.
 
 use super::rows::{
-    Tuned, aekf17_hover, events, feed, proposed, row_events, row_run, run_information_bound_s,
-    trace_point,
+    Tuned, aekf17_hover, beyond_three_sigma, events, feed, proposed, row_events, row_run,
+    run_information_bound_s, trace_point,
 };
 use super::{LoopTuning, SCORE_FROM_S};
 use crate::delay::{DefaultDelayLoop, DelayStatus};
@@ -286,8 +286,8 @@ fn write_loop_state(
 
 /// Runs the `proposed` navigator of the row `options.row` on `options.seed` and writes, every
 /// second, the true delay, the navigator's estimate and sigma, the loop's drift-rate estimate
-/// and status, `Health::delay_valid`, the gain fusion's own sigma, the last innovation window (estimate and std, when
-/// the observation is on), and the last delay update's axes (valid flag, window peak, peak
+/// and status, `Health::delay_valid`, the gain fusion's own sigma, the last innovation window
+/// (estimate and std, when the observation is on), and the last delay update's axes (valid flag, window peak, peak
 /// correlation, IMU acceleration variance over the buffer) as CSV to `out`. Delays are
 /// relative to the raw IMU (the loop's values plus the accelerometer whitening's group delay),
 /// as the suite scores them. With `compare_accel`, two more loops fed other accelerations add
@@ -348,7 +348,7 @@ pub fn write_trace(
         }
         let health = nav.health();
         if health.delay_valid {
-            let far = (health.delay.delay_s - truth_s).abs() > 3.0 * health.delay.delay_std_s;
+            let far = beyond_three_sigma(health.delay.delay_s, health.delay.delay_std_s, truth_s);
             valid_but_far.0 += usize::from(far);
             valid_but_far.1 += 1;
         }
